@@ -11,6 +11,21 @@ from lander_sim.physics.dynamics_protocol import Dynamics
 from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W
 
 
+class IntegratorError(ValueError):
+    """Bad integrator configuration: unknown name, unknown option or a non-positive step."""
+
+
+def check_dt(dt: float) -> float:
+    """Return ``dt`` as a float if it is a finite positive step [s]; else raise :class:`IntegratorError`."""
+    try:
+        value = float(dt)
+    except (TypeError, ValueError):
+        raise IntegratorError(f"time step dt must be a positive number of seconds, got {dt!r}") from None
+    if not (value > 0.0 and math.isfinite(value)):
+        raise IntegratorError(f"time step dt must be a positive, finite number of seconds, got {dt!r}")
+    return value
+
+
 class Integrator(Protocol):
     """A fixed-step method: advance ``y`` in place from ``t`` to ``t + dt``."""
 

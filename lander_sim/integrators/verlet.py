@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lander_sim.integrators.base import clamp_fuel, renormalise_quaternion
+from lander_sim.integrators.base import check_dt, clamp_fuel, renormalise_quaternion
 from lander_sim.physics import rotation
 from lander_sim.physics.dynamics_protocol import Dynamics
 from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W
@@ -34,6 +34,8 @@ class VelocityVerlet:
     _est: np.ndarray = field(default_factory=lambda: np.zeros(14), repr=False)
 
     def step(self, dyn: Dynamics, t: float, y: np.ndarray, dt: float) -> None:
+        if type(dt) is not float or not dt > 0.0:
+            dt = check_dt(dt)
         a0, a1, est = self._a0, self._a1, self._est
         dyn.accelerations(t, y, a0)
         fuel_rate = dyn.fuel_rate(t, y)

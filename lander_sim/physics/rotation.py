@@ -152,6 +152,21 @@ def quat_exp_step(q: np.ndarray, omega_B: np.ndarray, dt: float) -> np.ndarray:
 
 # --- ZXZ Euler angles -------------------------------------------------------
 
+#: Smallest |sin theta| used as a divisor in eq 5 and eq 7. Exactly at gimbal lock
+#: J is infinite; flooring the divisor keeps the numbers finite (and wildly
+#: wrong, which is the behaviour a student should see) instead of raising
+#: ZeroDivisionError and killing the process. Callers warn via near_gimbal_lock.
+SIN_THETA_FLOOR = 1e-12
+
+
+def _guarded_sin(theta: float) -> float:
+    """``sin(theta)`` with its magnitude floored at :data:`SIN_THETA_FLOOR`, sign kept."""
+    st = math.sin(theta)
+    if abs(st) < SIN_THETA_FLOOR:
+        return SIN_THETA_FLOOR if st >= 0.0 else -SIN_THETA_FLOOR
+    return st
+
+
 
 def euler_to_matrix(E: np.ndarray) -> np.ndarray:
     """World-to-body matrix ``R = Rz(psi) Rx(theta) Rz(phi)`` of ZXZ angles (eq 3)."""
@@ -202,9 +217,13 @@ def quat_to_euler(q: np.ndarray) -> np.ndarray:
 
 
 def euler_rates_matrix(E: np.ndarray) -> np.ndarray:
-    """``J`` of eq 5, ``E' = J omega``. Singular where ``sin theta = 0`` (gimbal lock)."""
+    """``J`` of eq 5, ``E' = J omega``. Singular where ``sin theta = 0`` (gimbal lock).
+
+    At the singularity the divisor is floored (:data:`SIN_THETA_FLOOR`): the
+    result is finite but meaningless, as in the seed program's Euler variant.
+    """
     _, theta, psi = E
-    st, ct = math.sin(theta), math.cos(theta)
+    st, ct = _guarded_sin(theta), math.cos(theta)
     sp, cp = math.sin(psi), math.cos(psi)
     return np.array(
         [
@@ -233,7 +252,7 @@ def euler_rates_matrix_dot(E: np.ndarray, E_dot: np.ndarray) -> np.ndarray:
     """Time derivative ``J'`` of eq 5's ``J`` (eq 7), given ``E`` and ``E'``."""
     _, theta, psi = E
     _, th_d, ps_d = E_dot
-    st, ct = math.sin(theta), math.cos(theta)
+    st, ct = _guarded_sin(theta), math.cos(theta)
     sp, cp = math.sin(psi), math.cos(psi)
     tt = st / ct if ct != 0.0 else math.inf
     return np.array(

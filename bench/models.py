@@ -1,0 +1,98 @@
+"""Cost of the models: steps per second of each scene, and of the lander with models added one by one.
+
+Velocity Verlet on the numpy Dynamics path (two evaluations per step), one core.
+
+    python bench/models.py [--json FILE] [--out DIR] [--quick]
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+import _common as C
+from lander_sim.integrators import make
+from lander_sim.physics.dynamics import LanderDynamics
+from lander_sim.physics.models import Atmosphere, Inputs, InverseSquareGravity, MeshDrag, Parachute, SphereDrag, Thrusters, sphere_mesh
+from lander_sim.physics.models.parachute import ChuteStatus
+from lander_sim.scenes import list_scenes, load_scene
+from lander_sim.simulation import Simulation
+
+
+def _rate(step, n: int) -> float:
+    step(10)  # warm-up
+    t0 = time.perf_counter()
+    step(n)
+    return n / (time.perf_counter() - t0)
+
+
+def scenes(quick: bool) -> list[dict]:
+    n = 300 if quick else 2000
+    rows = []
+    for info in list_scenes():
+        sc = load_scene(info.name)
+        sim = Simulation(sc)
+        rows.append(dict(scene=info.name, integrator=sc.integrator, attitude=sc.attitude,
+                         models=", ".join(k for k, v in vars(sc.models).items() if v) or "(none)",
+                         steps_per_s=_rate(sim.step, n)))
+    return rows
+
+
+def one_by_one(quick: bool) -> list[dict]:
+    n = 500 if quick else 5000
+    sc = load_scene("hover")
+    veh = sc.vehicle
+    inputs = Inputs(throttles=np.full(4, 0.5), wind_W=np.array([3.0, 0.0, 1.0]))
+    chute = Parachute()
+    chute.status = ChuteStatus.DEPLOYED
+    c_B, n_B, areas = sphere_mesh(1.0, np.zeros(3), 12, 24)
+    stages = [
+        ("rotation only (Euler eq 2)", [], False),
+        ("+ inverse-square gravity", [InverseSquareGravity()], False),
+        ("+ atmosphere + sphere drag", [InverseSquareGravity(), SphereDrag()], True),
+        ("+ 4 thrusters, fuel burn", [InverseSquareGravity(), SphereDrag(), Thrusters(veh)], True),
+        ("+ parachute (deployed)", [InverseSquareGravity(), SphereDrag(), chute, Thrusters(veh)], True),
+        ("mesh drag (12x24 panels) instead of sphere", [InverseSquareGravity(), MeshDrag(c_B, n_B, areas), Thrusters(veh)], True),
+    ]
+    rows = []
+    for label, models, atmo in stages:
+        dyn = LanderDynamics(veh, models, "quaternion", True, inputs, Atmosphere() if atmo else None, 3386e3)
+        y = sc.initial_state.copy()
+        integ = make("verlet")
+        k = [0]
+
+        def step(m: int) -> None:
+            for _ in range(m):
+                integ.step(dyn, k[0] * 0.01, y, 0.01)
+                k[0] += 1
+        rows.append(dict(models=label, steps_per_s=_rate(step, n)))
+    base = rows[0]["steps_per_s"]
+    for r in rows:
+        r["relative_cost"] = base / r["steps_per_s"]
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
+    sc = scenes(args.quick)
+    print(C.table("steps per second of each scene (its own integrator, Simulation.step, numpy path)",
+                  ["scene", "integrator", "attitude", "models on", "steps/s"],
+                  [[r["scene"], r["integrator"], r["attitude"], r["models"], f"{r['steps_per_s']:.0f}"] for r in sc]))
+    ob = one_by_one(args.quick)
+    print(C.table("lander, Verlet, models switched on one by one", ["models", "steps/s", "cost x"],
+                  [[r["models"], f"{r['steps_per_s']:.0f}", r["relative_cost"]] for r in ob]))
+    C.write_json(args.json, {"scenes": sc, "one_by_one": ob})
+    if args.out:
+        plt = C.pyplot()
+        fig, ax = plt.subplots(figsize=(7, 3.2))
+        ax.barh([r["models"] for r in ob][::-1], [r["steps_per_s"] for r in ob][::-1])
+        ax.set_xlabel("Verlet steps per second (numpy path, one core)")
+        fig.tight_layout()
+        C.Path(args.out).mkdir(parents=True, exist_ok=True)
+        fig.savefig(C.Path(args.out) / "bench-models.png", dpi=90)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

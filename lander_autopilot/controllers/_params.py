@@ -1,0 +1,44 @@
+"""Validation of controller parameters: errors name the parameter, the expected and the found shape."""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import ControllerError
+
+
+def matrix_param(name: str, value: object, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a finite float array of exactly ``shape`` (a vector may be given for a 1-row matrix)."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ControllerError(f"{name}: expected a numeric array of shape {shape}, got {value!r}") from None
+    if a.shape != shape and a.size == int(np.prod(shape)) and (a.ndim == 1 or 1 in shape):
+        a = a.reshape(shape)
+    if a.shape != shape:
+        raise ControllerError(f"{name}: expected shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ControllerError(f"{name}: all entries must be finite, got {a.tolist()}")
+    return a
+
+
+def poles_param(name: str, value: object, n: int) -> np.ndarray:
+    """``n`` closed-loop poles, all strictly in the left half plane."""
+    try:
+        p = np.asarray(value, dtype=complex).reshape(-1)
+    except (TypeError, ValueError):
+        raise ControllerError(f"{name}: expected {n} poles (numbers), got {value!r}") from None
+    if p.size != n:
+        raise ControllerError(f"{name}: expected {n} poles, got {p.size}: {p.tolist()}")
+    if not np.all(np.isfinite(p)) or np.any(p.real >= 0.0):
+        raise ControllerError(f"{name}: poles must be finite with negative real part, got {p.tolist()}")
+    return p
+
+
+def positive_param(name: str, value: object) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ControllerError(f"{name}: expected a positive number, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0.0:
+        raise ControllerError(f"{name}: expected a positive number, got {value!r}")
+    return v

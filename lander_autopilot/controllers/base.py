@@ -1,0 +1,137 @@
+"""The controller interface: state + demand in, throttles out (docs/architecture.md, "Contract: controllers").
+
+A controller is built once for a :class:`~lander_sim.physics.vehicle.Vehicle` (all design work,
+including any python-control call, happens then) and afterwards only runs :meth:`Controller.update`,
+which must be cheap: it is called at 50-100 Hz in sweeps of thousands of flights.
+"""
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from lander_sim.physics.constants import MARS_RADIUS
+from lander_sim.physics.state import StateView
+from lander_sim.physics.vehicle import Vehicle
+
+#: ZXZ Euler angles (phi, theta, psi) of an upright lander on the -y axis [rad].
+UPRIGHT_EULER: tuple[float, float, float] = (0.0, math.pi / 2.0, 0.0)
+
+
+class ControllerError(ValueError):
+    """Bad controller request: unknown name, unknown or ill-shaped parameter (the message names it)."""
+
+
+class DemandError(ValueError):
+    """Bad demand: NaN, infinite, or below the ground (the message names the field and value)."""
+
+
+@dataclass(frozen=True)
+class Demand:
+    """What the autopilot is asked to hold.
+
+    Attributes
+    ----------
+    altitude : float
+        Demand altitude above the surface, ``|r_W| - R_mars`` [m]; finite and >= 0.
+    attitude : tuple of 3 floats
+        Demand ZXZ Euler angles ``(phi, theta, psi)`` [rad]; default upright on the -y axis.
+    omega_B : tuple of 3 floats
+        Demand body rate [rad/s]; default at rest.
+    """
+
+    altitude: float = 500.0
+    attitude: tuple[float, float, float] = UPRIGHT_EULER
+    omega_B: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        try:
+            alt = float(self.altitude)
+        except (TypeError, ValueError):
+            raise DemandError(f"demand altitude must be a number in metres, got {self.altitude!r}") from None
+        if not math.isfinite(alt):
+            raise DemandError(f"demand altitude must be finite, got {self.altitude!r}")
+        if alt < 0.0:
+            raise DemandError(f"demand altitude {alt} m is below the ground (must be >= 0 m)")
+        object.__setattr__(self, "altitude", alt)
+        for name in ("attitude", "omega_B"):
+            v = getattr(self, name)
+            try:
+                t = tuple(float(c) for c in v)
+            except (TypeError, ValueError):
+                raise DemandError(f"demand {name} must be 3 numbers, got {v!r}") from None
+            if len(t) != 3 or not all(math.isfinite(c) for c in t):
+                raise DemandError(f"demand {name} must be 3 finite numbers, got {v!r}")
+            object.__setattr__(self, name, t)
+
+
+@dataclass(frozen=True)
+class ControlOutput:
+    """One control step's result.
+
+    Attributes
+    ----------
+    throttles : ndarray (N,)
+        Commanded throttles, clipped to [0, 1].
+    saturated : bool
+        True if any throttle was clipped.
+    unclipped : ndarray (N,) or None
+        The control law's throttles before clipping (diagnostics); optional for plug-ins.
+    """
+
+    throttles: np.ndarray
+    saturated: bool
+    unclipped: np.ndarray | None = field(default=None, repr=False)
+
+
+def saturate(u: np.ndarray) -> ControlOutput:
+    """Clip throttles to [0, 1] and report whether clipping happened.
+
+    Clipping by rounding-size amounts (a law at rest asking for -1e-15) is not saturation.
+    Written with two ufuncs and two reductions: ``np.clip``/``np.any`` cost several times more
+    per call at this size, and this runs every control step of every flight of a sweep.
+    """
+    lo, hi = float(u.min()), float(u.max())
+    t = np.minimum(np.maximum(u, 0.0), 1.0)
+    return ControlOutput(throttles=t, saturated=lo < -1e-9 or hi > 1.0 + 1e-9, unclipped=u)
+
+
+def altitude_and_climb_rate(state: StateView) -> tuple[float, float]:
+    """Altitude ``|r_W| - R_mars`` [m] and climb rate ``v_W . r_hat`` [m/s]."""
+    x, y, z = state.r_W.tolist()  # Python floats: numpy scalar arithmetic is ~10x slower
+    r = math.sqrt(x * x + y * y + z * z)
+    vx, vy, vz = state.v_W.tolist()
+    return r - MARS_RADIUS, (vx * x + vy * y + vz * z) / r
+
+
+def wrap_angle(a: float) -> float:
+    """Angle in [-pi, pi]: the shortest way round for an angle error."""
+    return math.remainder(a, 2.0 * math.pi)
+
+
+class Controller(ABC):
+    """Base of all controllers (built-in and third-party).
+
+    Subclasses set :attr:`name`, do their design in ``__init__`` and implement
+    :meth:`update`; :meth:`reset` clears internal state (integrators, memories).
+    """
+
+    name: ClassVar[str] = "controller"
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self.vehicle = vehicle
+        self.n_thrusters = vehicle.n_thrusters
+
+    def reset(self) -> None:
+        """Forget internal state. Stateless laws have nothing to forget."""
+
+    def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
+        """Throttles for ``state`` at time ``t`` [s] to meet ``demand``, clipped to [0, 1]."""
+        return saturate(self.command(t, state, demand))
+
+    @abstractmethod
+    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+        """The law's throttles before clipping, shape (N,). Summed laws add these, then clip once."""

@@ -1,0 +1,98 @@
+"""Controller registry: built-ins plus third-party plug-ins from the entry-point group
+``mars_lander.controllers``.
+
+A plug-in package declares, in its ``pyproject.toml``::
+
+    [project.entry-points."mars_lander.controllers"]
+    my-law = "my_package.module:MyController"
+
+where ``MyController(vehicle, **params)`` returns an object with ``name``, ``reset()`` and
+``update(t, state, demand) -> ControlOutput`` (subclassing :class:`~.base.Controller` is the
+easy way). No change to this package is needed. Built-in names win over plug-ins of the same name.
+"""
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from importlib.metadata import entry_points
+from typing import Any
+
+from lander_sim.physics.vehicle import Vehicle
+
+from ..design import DesignError
+from .altitude import AltitudeController, AltitudePController, BaselineController, IntegralAltitudeController
+from .attitude import EulerAttitudeController, QuaternionAttitudeController
+from .base import Controller, ControllerError
+from .combined import CombinedController, CombinedQuaternionController, IntegralController, LQRController
+
+ENTRY_POINT_GROUP = "mars_lander.controllers"
+
+Factory = Callable[..., Any]
+
+BUILTINS: dict[str, Factory] = {
+    c.name: c
+    for c in (
+        BaselineController,
+        AltitudeController,
+        AltitudePController,
+        IntegralAltitudeController,
+        EulerAttitudeController,
+        QuaternionAttitudeController,
+        CombinedController,
+        CombinedQuaternionController,
+        IntegralController,
+        LQRController,
+    )
+}
+
+
+def _plugins() -> dict[str, Any]:
+    """Entry points of the plug-in group, by name (loaded lazily by :func:`make_controller`)."""
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_controllers() -> list[str]:
+    """Names of every controller that :func:`make_controller` accepts, sorted."""
+    return sorted(set(BUILTINS) | set(_plugins()))
+
+
+def _check_params(name: str, factory: Factory, params: dict[str, object]) -> None:
+    """Unknown parameter names fail with the list of accepted ones (not a bare TypeError)."""
+    sig = inspect.signature(factory)
+    ps = list(sig.parameters.values())
+    if any(p.kind is p.VAR_KEYWORD for p in ps):
+        return  # a plug-in taking **params validates them itself
+    allowed = sorted(p.name for p in ps if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.name != "vehicle"))
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        raise ControllerError(
+            f"controller {name!r}: unknown parameter(s) {', '.join(unknown)}; accepted: {', '.join(allowed) or '(none)'}"
+        )
+
+
+def make_controller(name: str, vehicle: Vehicle, **params: object) -> Controller:
+    """Build controller ``name`` for ``vehicle`` with ``params``.
+
+    Raises :class:`ControllerError` (a ``ValueError``) for an unknown name (listing the valid
+    ones), an unknown parameter (listing the accepted ones), or a parameter of the wrong
+    shape or value (naming it and the expected shape).
+    """
+    factory: Factory | None = BUILTINS.get(name)
+    if factory is None:
+        ep = _plugins().get(name)
+        if ep is None:
+            raise ControllerError(
+                f"unknown controller {name!r}; available: {', '.join(available_controllers())}"
+            )
+        factory = ep.load()
+    _check_params(name, factory, params)
+    try:
+        ctrl = factory(vehicle, **params)
+    except ControllerError:
+        raise
+    except DesignError as exc:
+        raise ControllerError(f"controller {name!r}: {exc}") from None
+    for attr in ("name", "reset", "update"):
+        if not hasattr(ctrl, attr):
+            raise ControllerError(f"controller {name!r} from {factory!r} has no {attr!r}: not a controller")
+    return ctrl

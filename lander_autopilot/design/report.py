@@ -1,0 +1,129 @@
+"""The design report of ``lander design SCENE``: matrices, controllability, gains and poles.
+
+:func:`design_report` builds a JSON-able dict for the altitude model (eq 16) and the attitude
+model (eq 28); :func:`format_report` prints it like seed 2's Octave scripts do.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lander_sim.physics.vehicle import Vehicle
+
+from . import DesignError
+from .altitude import altitude_model
+from .attitude import UPRIGHT_EULER, attitude_model
+from .controllability import controllability
+from .gains import GainDesign, lqr, place_poles
+
+ATTITUDE_STATES = ("phi", "theta", "psi", "wx", "wy", "wz")
+ALTITUDE_STATES = ("z", "z_dot")
+
+
+def _poles_json(p: np.ndarray) -> list[list[float]]:
+    """Complex poles as ``[re, im]`` pairs (JSON has no complex numbers)."""
+    return [[float(z.real), float(z.imag)] for z in np.asarray(p, dtype=complex)]
+
+
+def _model_section(
+    A: np.ndarray, B: np.ndarray, states: tuple[str, ...], poles: list[complex], Q: np.ndarray, R: np.ndarray
+) -> dict[str, Any]:
+    ctrb = controllability(A, B)
+    out: dict[str, Any] = {
+        "states": list(states),
+        "A": A.tolist(),
+        "B": B.tolist(),
+        "controllability_rank": ctrb.rank,
+        "n_states": A.shape[0],
+        "controllable": ctrb.controllable,
+        # Clean rounding noise so exact directions (e.g. pure psi) print as such.
+        "uncontrollable_basis": np.where(np.abs(ctrb.uncontrollable) < 1e-12, 0.0, ctrb.uncontrollable).T.tolist(),
+        "open_loop_poles": _poles_json(np.linalg.eigvals(A)),
+    }
+    d: GainDesign = place_poles(A, B, poles)
+    out["placement"] = {
+        "method": d.method,
+        "requested_poles": _poles_json(d.requested),
+        "K": d.K.tolist(),
+        "closed_loop_poles": _poles_json(d.poles),
+    }
+    try:
+        dl = lqr(A, B, Q, R)
+        out["lqr"] = {"Q": Q.tolist(), "R": R.tolist(), "K": dl.K.tolist(), "closed_loop_poles": _poles_json(dl.poles)}
+    except DesignError as exc:
+        out["lqr"] = {"error": str(exc)}
+    return out
+
+
+def design_report(
+    vehicle: Vehicle,
+    fuel: float,
+    altitude: float = 500.0,
+    altitude_poles: tuple[complex, ...] = (-0.9, -1.1),
+    attitude_poles: tuple[complex, ...] = (-1.0,) * 6,
+    E_e: tuple[float, float, float] = UPRIGHT_EULER,
+) -> dict[str, Any]:
+    """Both models' ``A``, ``B``, controllability rank and uncontrollable basis (rows are state
+    directions), pole-placement gain ``K`` and LQR gain with their closed-loop poles."""
+    from ..controllers.combined import LQR_Q_ALTITUDE, LQR_Q_ATTITUDE, LQR_R_ALTITUDE, LQR_R_ATTITUDE
+
+    alt = altitude_model(vehicle, fuel, altitude)
+    att = attitude_model(vehicle, fuel, E_e)
+    return {
+        "mass": alt.mass,
+        "fuel": float(fuel),
+        "altitude": {
+            "demand_altitude": float(altitude),
+            "T_v": alt.T_v,
+            "hover_throttle": alt.t_e,
+            **_model_section(
+                alt.A, alt.B, ALTITUDE_STATES, list(altitude_poles), np.diag(LQR_Q_ALTITUDE), LQR_R_ALTITUDE * np.eye(1)
+            ),
+        },
+        "attitude": {
+            "demand_euler": [float(e) for e in E_e],
+            "inertia": att.inertia.tolist(),
+            "torque_arms": vehicle.torque_arms().tolist(),
+            **_model_section(
+                att.A,
+                att.B,
+                ATTITUDE_STATES,
+                list(attitude_poles),
+                np.diag(LQR_Q_ATTITUDE),
+                LQR_R_ATTITUDE * np.eye(vehicle.n_thrusters),
+            ),
+        },
+    }
+
+
+def _fmt_matrix(M: list[list[float]], indent: str = "    ") -> str:
+    return "\n".join(indent + " ".join(f"{v:11.5g}" for v in row) for row in M) if M else indent + "(empty)"
+
+
+def _fmt_poles(p: list[list[float]]) -> str:
+    return ", ".join(f"{re:.6g}{im:+.3g}j" if abs(im) > 1e-9 else f"{re:.6g}" for re, im in p)
+
+
+def format_report(rep: dict[str, Any]) -> str:
+    """Human-readable text of :func:`design_report`."""
+    lines = [f"mass {rep['mass']:.6g} kg (fuel {rep['fuel']:.6g} kg)"]
+    for key, title in (("altitude", "Altitude model (eq 16)"), ("attitude", "Attitude model (eq 28)")):
+        s = rep[key]
+        lines.append(f"\n== {title}: x = [{' '.join(s['states'])}]")
+        if key == "altitude":
+            lines.append(f"T_v = {s['T_v']:.6g} N, hover throttle t_e = {s['hover_throttle']:.6g} (eq 14)")
+        lines += ["A =", _fmt_matrix(s["A"]), "B =", _fmt_matrix(s["B"])]
+        lines.append(f"controllability matrix rank = {s['controllability_rank']} of {s['n_states']}")
+        if s["uncontrollable_basis"]:
+            lines.append("uncontrollable directions (rows, over " + " ".join(s["states"]) + "):")
+            lines.append(_fmt_matrix(s["uncontrollable_basis"]))
+        p = s["placement"]
+        lines.append(f"pole placement ({p['method']}), requested poles {_fmt_poles(p['requested_poles'])}")
+        lines += ["K =", _fmt_matrix(p["K"]), f"closed-loop poles: {_fmt_poles(p['closed_loop_poles'])}"]
+        lq = s["lqr"]
+        if "error" in lq:
+            lines.append(f"LQR: {lq['error']}")
+        else:
+            lines += ["LQR K =", _fmt_matrix(lq["K"]), f"LQR closed-loop poles: {_fmt_poles(lq['closed_loop_poles'])}"]
+    return "\n".join(lines)

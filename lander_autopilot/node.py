@@ -1,0 +1,282 @@
+"""``autopilot``: the ROS 2 autopilot node, a thin shell around a controller plug-in.
+
+Run (project venv, no ROS install needed)::
+
+    ./dev exec autopilot_node                                     # the scene 'hover' and its controller
+    ./dev exec autopilot_node --ros-args --params-file config/autopilot.yaml
+    ./dev exec autopilot_node --ros-args -p scene:=hover-canted -p controller:=combined \\
+        -p controller_params:='{altitude_poles: [-0.9, -1.1]}' -p demand_altitude:=520.0
+    ./dev exec python -m lander_autopilot.node --ros-args -p controller:=altitude-p
+
+On a full ROS 2 install: ``ros2 run mars_lander autopilot_node --ros-args --params-file config/autopilot.yaml``.
+
+One control step, once per state the simulator publishes (it publishes at the control rate)::
+
+    /lander/state -> StateView -> controller.update(t, state, demand) -> /lander/throttle
+                                                                      -> /autopilot/status
+
+Swapping the controller while flying: service ``/autopilot/switch_controller``
+(``lander_interfaces/srv/SwitchController``) or an atomic change of the parameters
+``controller`` and ``controller_params``. The new controller is built and checked first, then
+installed between two state callbacks (one executor thread), and a ``FlightEvent``
+``CONTROLLER_SWITCHED`` goes to ``/lander/events``. A refused change leaves the running controller
+flying. See docs/autopilot_node.md. No control law and no physics here.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import rclpy
+from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
+from lander_interfaces.srv import SwitchController
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
+
+from lander_autopilot.controllers import Demand
+from lander_autopilot.ros import convert
+from lander_autopilot.ros.config import (
+    CONTROLLER_PARAMETERS,
+    DEFAULT_STATE_TIMEOUT,
+    NODE_NAME,
+    PARAMETER_NAMES,
+    PARAMETERS,
+    ConfigError,
+    check_state_timeout,
+    check_string,
+    dump_controller_params,
+    parse_controller_params,
+    scene_autopilot,
+)
+from lander_autopilot.ros.slot import ControllerChoice, ControllerSlot, OutputError, build_choice
+from lander_sim.scenes import load_scene
+
+#: Only the newest state matters: a controller must never work through a backlog of old states.
+_STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+_EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
+#: Wall period [s] of the state watchdog (steady clock: it must notice a simulator whose /clock stopped).
+_WATCHDOG_PERIOD = 0.1
+#: Parameters every ROS node has, accepted on the command line and in parameter files.
+_ROS_BUILTIN = {"use_sim_time", "start_type_description_service"}
+
+
+class AutopilotNode(Node):
+    """The autopilot node. Build it, then spin it in a single-threaded executor."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        # Sim time by default (the simulator is the clock); an explicit override still wins.
+        if "use_sim_time" not in self._parameter_overrides:
+            self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        unknown = sorted(set(self._parameter_overrides) - set(PARAMETER_NAMES) - _ROS_BUILTIN)
+        if unknown:
+            raise ConfigError(f"unknown parameter {unknown[0]!r} for node {NODE_NAME!r}; known: {', '.join(PARAMETER_NAMES)}")
+
+        # Defaults follow the scene: declare it first, then the rest with its autopilot section.
+        scene = check_string("scene", self._declare("scene", "hover"))
+        wanted = scene_autopilot(load_scene(scene))
+        controller = check_string("controller", self._declare("controller", wanted.controller))
+        params_text = self._declare("controller_params", dump_controller_params(wanted.parameters))
+        demand = self._declare("demand_altitude", wanted.demand_altitude, dynamic=True)
+        self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT, dynamic=True))
+        self.slot = ControllerSlot(
+            build_choice(scene, controller, parse_controller_params(params_text)), Demand(altitude=_number(demand))
+        )
+
+        self._pending_choice: ControllerChoice | None = None
+        self._pending_demand: float | None = None
+        self._pending_timeout: float | None = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+
+        self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", _QOS)
+        self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", _QOS)
+        self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
+        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
+        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _QOS)
+        self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch)
+
+        # Kept and refilled: no per-step construction of message objects.
+        self._cmd = ThrottleCommand()
+        self._status = AutopilotStatus()
+        self._last_stamp = None  # stamp of the last state answered (sim time)
+        self._start_wall = time.monotonic()
+        self._last_state_wall: float | None = None
+        self._state_lost = False
+        self._next_lost_report = 0.0
+        self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
+        )
+
+    def _declare(self, name: str, default, dynamic: bool = False):
+        """Declare a parameter with its description; return its value (an override wins over the default)."""
+        spec = next(p for p in PARAMETERS if p.name == name)
+        descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=dynamic)
+        return self.declare_parameter(name, default, descriptor).value
+
+    # --- control step ------------------------------------------------------------------------
+
+    def _on_state(self, msg: LanderState) -> None:
+        self._last_state_wall = time.monotonic()
+        if self._state_lost:
+            self._state_lost = False
+            self.get_logger().info(f"state received again (sequence {msg.sequence})")
+        try:
+            state = convert.state_view(msg, self.slot.choice.vehicle.n_thrusters)
+            out = self.slot.step(state, msg.sequence)
+        except (convert.StateError, OutputError) as exc:
+            self._refuse(str(exc), msg.header.stamp)
+            self._publish_status()
+            return
+        except Exception as exc:  # noqa: BLE001 - a failing plug-in must not take the node down
+            self._refuse(f"controller {self.slot.name!r} failed on state {msg.sequence}: {type(exc).__name__}: {exc}",
+                         msg.header.stamp)
+            self._publish_status()
+            return
+        convert.fill_throttle(self._cmd, msg, out.throttles)
+        self._pub_throttle.publish(self._cmd)
+        self._last_stamp = msg.header.stamp
+        self._publish_status()
+
+    # --- inputs: demand, parameters, switch service ------------------------------------------
+
+    def _on_demand(self, msg: Float64) -> None:
+        # Through the parameter so that one validation path serves topic and parameter alike;
+        # a refusal is counted, logged and announced by _on_set_parameters.
+        self.set_parameters([Parameter("demand_altitude", Parameter.Type.DOUBLE, float(msg.data))])
+
+    def _srv_switch(self, request: SwitchController.Request, response: SwitchController.Response):
+        old = self.slot.name
+        result = self.set_parameters_atomically([
+            Parameter("controller", Parameter.Type.STRING, request.controller),
+            Parameter("controller_params", Parameter.Type.STRING, request.parameters_yaml),
+        ])
+        response.success = result.successful
+        response.message = result.reason if not result.successful else f"switched {old!r} -> {self.slot.name!r}"
+        response.active_controller = self.slot.name
+        return response
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Validate a change; build a new controller completely before anything is swapped."""
+        self._pending_choice = self._pending_demand = self._pending_timeout = None
+        new = {p.name: p.value for p in params if p.name in PARAMETER_NAMES}
+        try:
+            if new.keys() & CONTROLLER_PARAMETERS:
+                value = {n: new.get(n, self.get_parameter(n).value) for n in CONTROLLER_PARAMETERS}
+                self._pending_choice = build_choice(
+                    check_string("scene", value["scene"]),
+                    check_string("controller", value["controller"]),
+                    parse_controller_params(value["controller_params"]),
+                )
+            if "demand_altitude" in new:
+                self._pending_demand = _number(new["demand_altitude"])
+                ControllerSlot.check_demand_altitude(self._pending_demand)
+            if "state_timeout" in new:
+                self._pending_timeout = check_state_timeout(new["state_timeout"])
+        except ValueError as exc:
+            self._pending_choice = self._pending_demand = self._pending_timeout = None
+            reason = str(exc)
+            self._refuse(f"refused {', '.join(sorted(new))}: {reason}", self._last_stamp)
+            self._publish_status()
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, params: list[Parameter]) -> None:
+        """Apply a validated change (same executor thread as the state callback: between two steps)."""
+        if self._pending_choice is not None:
+            choice, self._pending_choice = self._pending_choice, None
+            seq = self.slot.last_sequence
+            old = self.slot.swap(choice)
+            detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
+                      f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
+            self.get_logger().info(detail)
+            self._publish_event(FlightEvent.CONTROLLER_SWITCHED, detail, [float(seq)])
+            self._publish_status()
+        if self._pending_demand is not None:
+            self.slot.set_demand_altitude(self._pending_demand)
+            self.get_logger().info(f"demand altitude {self._pending_demand} m")
+            self._pending_demand = None
+        if self._pending_timeout is not None:
+            self._state_timeout, self._pending_timeout = self._pending_timeout, None
+
+    # --- health --------------------------------------------------------------------------------
+
+    def _watchdog(self) -> None:
+        """Report a lost state stream (no command is sent without a state, so nothing unsafe goes out)."""
+        now = time.monotonic()
+        since = self._last_state_wall if self._last_state_wall is not None else self._start_wall
+        if now - since <= self._state_timeout:
+            return
+        if not self._state_lost:
+            self._state_lost = True
+            self._next_lost_report = now
+        if now >= self._next_lost_report:
+            self._next_lost_report = now + self._state_timeout
+            what = "no state received yet" if self._last_state_wall is None else "state lost"
+            self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
+            self.get_logger().warning(self.slot.last_error)
+            self._publish_status()
+
+    def _refuse(self, reason: str, stamp) -> None:
+        """Count, log (throttled) and announce a refused input; a repeated reason is announced once."""
+        repeated = reason == self.slot.last_error
+        count = self.slot.reject(reason)
+        self.get_logger().warning(f"rejected (#{count}): {reason}", throttle_duration_sec=1.0)
+        if not repeated:
+            self._publish_event(FlightEvent.INPUT_REJECTED, reason, [float(count)], stamp)
+
+    def _stamp(self, stamp=None):
+        if stamp is not None:
+            return stamp
+        return self._last_stamp if self._last_stamp is not None else self.get_clock().now().to_msg()
+
+    def _publish_status(self) -> None:
+        s = self.slot
+        convert.fill_status(self._status, stamp=self._stamp(), controller=s.name, saturated=s.saturated,
+                            steps=s.steps, rejected=s.rejected, last_error=s.last_error, throttles=s.throttles)
+        self._pub_status.publish(self._status)
+
+    def _publish_event(self, kind: int, detail: str, values: list[float], stamp=None) -> None:
+        ev = FlightEvent()
+        convert.fill_event(ev, stamp=self._stamp(stamp), kind=kind, detail=detail, values=values)
+        self._pub_events.publish(ev)
+
+
+def _number(value) -> float:
+    """A parameter value as float; refused (naming it) unless it is a number."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"parameter 'demand_altitude' = {value!r} must be a number of metres")
+    return float(value)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or shutdown."""
+    rclpy.init(args=sys.argv if argv is None else argv)
+    node = None
+    try:
+        node = AutopilotNode()
+        executor = SingleThreadedExecutor()  # one thread: a swap always falls between two steps
+        executor.add_node(node)
+        executor.spin()
+    except (ValueError, ParameterException) as exc:  # ConfigError, SceneError, ControllerError, DemandError
+        print(f"autopilot_node: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,144 @@
+"""Parameters of the autopilot node: names, descriptions, validation, and the scene's defaults.
+
+Plain Python (no rclpy), so the node's set-parameters callback, its start-up check and the unit
+tests share one set of checks. A refused value gets a reason naming the parameter, the value and
+what is allowed (a :class:`ConfigError`, a ``ValueError``).
+
+Defaults come from the scene (the same one the simulator runs, parameter ``scene``): its
+``autopilot`` section may hold ``controller`` (plug-in name), ``parameters`` (a mapping handed to
+the controller) and ``demand_altitude`` [m]. Without that section the node flies
+:data:`DEFAULT_CONTROLLER` with its own defaults at :data:`DEFAULT_DEMAND_ALTITUDE`.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import yaml
+
+from lander_sim.scenes import Scene
+
+#: The node's name: also the top-level key of its ROS parameters YAML file.
+NODE_NAME = "autopilot"
+#: Controller flown when neither the parameter nor the scene names one (seed 2's summed law).
+DEFAULT_CONTROLLER = "combined"
+#: Demand altitude [m] when the scene gives none: z_e = 500 m of the extended program.
+DEFAULT_DEMAND_ALTITUDE = 500.0
+#: Keys a scene's ``autopilot`` section may hold.
+SCENE_AUTOPILOT_KEYS = ("controller", "parameters", "demand_altitude")
+
+
+class ConfigError(ValueError):
+    """A parameter value or a scene's autopilot section was refused; the message names key and value."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter; its default is filled in at start-up from the scene where it says so."""
+
+    name: str
+    description: str
+
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("scene", "Scene (name, alias or YAML path, lander_sim.scenes.load_scene) whose vehicle the "
+                       "controllers are built for: the one the simulator runs. Changing it rebuilds the controller."),
+    ParamSpec("controller", "Controller plug-in name (entry-point group mars_lander.controllers). "
+                            f"Default: the scene's autopilot controller, else {DEFAULT_CONTROLLER!r}."),
+    ParamSpec("controller_params", "The controller's parameters as a YAML mapping, e.g. "
+                                   "'{altitude_poles: [-0.9, -1.1]}'; empty = the controller's defaults. "
+                                   "Default: the scene's autopilot parameters."),
+    ParamSpec("demand_altitude", "Demand altitude above the surface [m], finite and >= 0. "
+                                 f"Default: the scene's autopilot demand_altitude, else {DEFAULT_DEMAND_ALTITUDE} m. "
+                                 "/lander/demand_altitude sets it too."),
+    ParamSpec("state_timeout", "Wall-clock seconds without a state on /lander/state after which the "
+                               "status reports the state lost (no command is sent without a state)."),
+)
+PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)
+#: Parameters whose change rebuilds the controller (atomically swapped in).
+CONTROLLER_PARAMETERS = frozenset({"scene", "controller", "controller_params"})
+#: Default of ``state_timeout`` [s, wall]: 20 control periods at the slowest usual rate (20 Hz) -
+#: long enough not to flap on a loaded 2-core machine, short enough to notice a dead simulator.
+DEFAULT_STATE_TIMEOUT = 1.0
+
+
+def parse_controller_params(text: Any) -> dict[str, Any]:
+    """The ``controller_params`` YAML text as a dict (empty text: ``{}``).
+
+    Raises :class:`ConfigError` naming the parameter when the text is not YAML or not a mapping
+    with string keys. The values are checked by the controller itself (shape, sign).
+    """
+    if not isinstance(text, str):
+        raise ConfigError(f"parameter 'controller_params' must be a YAML string, got {text!r}")
+    if not text.strip():
+        return {}
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"parameter 'controller_params' is not valid YAML: {exc}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict) or not all(isinstance(k, str) for k in data):
+        raise ConfigError(
+            f"parameter 'controller_params' must be a YAML mapping of parameter names to values, got {data!r}"
+        )
+    return data
+
+
+def dump_controller_params(params: Mapping[str, Any]) -> str:
+    """Inverse of :func:`parse_controller_params`: one-line YAML flow mapping ("" when empty)."""
+    if not params:
+        return ""
+    return yaml.safe_dump(dict(params), default_flow_style=True, sort_keys=True).strip()
+
+
+def check_state_timeout(value: Any) -> float:
+    """``state_timeout`` as a float [s]; refused unless finite and > 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ConfigError(f"parameter 'state_timeout' = {value!r} must be a finite number of seconds > 0")
+    return float(value)
+
+
+def check_string(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f"parameter {name!r} = {value!r} must be a string")
+    return value
+
+
+@dataclass(frozen=True)
+class SceneAutopilot:
+    """What a scene asks of the autopilot (its ``autopilot`` section, completed with the defaults)."""
+
+    controller: str = DEFAULT_CONTROLLER
+    parameters: Mapping[str, Any] = None  # type: ignore[assignment]
+    demand_altitude: float = DEFAULT_DEMAND_ALTITUDE
+
+    def __post_init__(self) -> None:
+        if self.parameters is None:
+            object.__setattr__(self, "parameters", {})
+
+
+def scene_autopilot(scene: Scene) -> SceneAutopilot:
+    """The scene's ``autopilot`` section (``controller``, ``parameters``, ``demand_altitude``) with defaults.
+
+    Raises :class:`ConfigError` naming the scene and the key for an unknown key or a value of the
+    wrong type. The demand itself is validated where it is used
+    (:class:`lander_autopilot.controllers.Demand`).
+    """
+    section = scene.autopilot
+    if section is None:
+        return SceneAutopilot()
+    unknown = sorted(set(section) - set(SCENE_AUTOPILOT_KEYS))
+    if unknown:
+        raise ConfigError(
+            f"scene {scene.name!r}: autopilot.{unknown[0]}: unknown key; allowed: {', '.join(SCENE_AUTOPILOT_KEYS)}"
+        )
+    params = section.get("parameters") or {}
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"scene {scene.name!r}: autopilot.parameters must be a mapping, got {params!r}")
+    demand = section.get("demand_altitude", DEFAULT_DEMAND_ALTITUDE)
+    if isinstance(demand, bool) or not isinstance(demand, (int, float)):
+        raise ConfigError(f"scene {scene.name!r}: autopilot.demand_altitude must be a number [m], got {demand!r}")
+    return SceneAutopilot(str(section["controller"]), dict(params), float(demand))

@@ -1,0 +1,177 @@
+"""Fused velocity-Verlet kernel for the lander model of scenario 7 (numba-compiled when available).
+
+Same equations and, as far as practical, the same floating-point operation order as the
+numpy path (:class:`lander_sim.physics.dynamics.LanderDynamics` + :class:`lander_sim.integrators.verlet.VelocityVerlet`):
+
+* gravity ``F_W = -GM m r / |r|^3`` (eq 7 of the control reference);
+* exponential atmosphere ``rho = rho0 exp(-h/H)`` below the exosphere, sphere drag
+  ``F_W = 1/2 rho Cd A |W| W`` with ``W = wind_W - v_W``;
+* thrusters ``F_B = sum_i t_i F_i``, ``Q_B = sum_i t_i (p_i x F_i)``, fuel ``-sum_i t_i burn_i``;
+* ``a_W = (F_W + R(q)^T F_B) / m`` (eq 13), Euler's equations (eq 1-2) with ``I = m diag(k^2)``;
+* velocity Verlet (seed 1 section 5), quaternion by eq 14 and renormalised (seed 1 task 3).
+
+Everything is scalar code in one function, so numba compiles it to a loop with no
+allocation; without numba the same function runs as (slow) plain Python.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+try:  # numba is optional: the numpy Dynamics path is the fallback.
+    from numba import njit
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised only where numba is absent
+    HAVE_NUMBA = False
+
+    def njit(*args, **kwargs):  # type: ignore[no-redef]
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+# Layout of the ``params`` array.
+P_GM, P_RPLANET, P_RHO0, P_H, P_EXO, P_CD, P_AREA, P_DRY, P_K1, P_K2, P_K3, P_FIXED_I, P_GRAV, P_ATMO, P_DRAG, P_THRUST, P_RENORM = range(17)
+N_PARAMS = 17
+
+
+@njit(cache=True)
+def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: no cover - compiled
+    """``out[0:3] = a_W``, ``out[3:6] = omega_dot_B`` for state ``y``; returns nothing."""
+    s, a, b, c = y[6], y[7], y[8], y[9]
+    fuel = y[13]
+    mass = params[P_DRY] + fuel
+    x, yy, z = y[0], y[1], y[2]
+    r2 = x * x + yy * yy + z * z
+    fwx = 0.0
+    fwy = 0.0
+    fwz = 0.0
+    if params[P_GRAV] != 0.0:
+        k = -params[P_GM] * mass / (r2 * math.sqrt(r2))
+        fwx += k * x
+        fwy += k * yy
+        fwz += k * z
+    rho = 0.0
+    if params[P_ATMO] != 0.0:
+        alt = math.sqrt(x * x + yy * yy + z * z) - params[P_RPLANET]
+        if alt <= params[P_EXO]:
+            rho = params[P_RHO0] * math.exp(-alt / params[P_H])
+    if params[P_DRAG] != 0.0 and rho != 0.0:
+        wx, wy, wz = wind[0] - y[3], wind[1] - y[4], wind[2] - y[5]
+        kd = 0.5 * rho * params[P_CD] * params[P_AREA] * math.sqrt(wx * wx + wy * wy + wz * wz)
+        fwx += kd * wx
+        fwy += kd * wy
+        fwz += kd * wz
+    fbx = 0.0
+    fby = 0.0
+    fbz = 0.0
+    qx = 0.0
+    qy = 0.0
+    qz = 0.0
+    if params[P_THRUST] != 0.0 and fuel > 0.0:
+        for i in range(throttles.shape[0]):
+            t = throttles[i]
+            fbx += t * force[i, 0]
+            fby += t * force[i, 1]
+            fbz += t * force[i, 2]
+            qx += t * torque[i, 0]
+            qy += t * torque[i, 1]
+            qz += t * torque[i, 2]
+    # R(q)^T F_B with R of eq 13 (columns of R are rows of R^T).
+    r00 = s * s + a * a - b * b - c * c
+    r01 = 2.0 * (a * b + s * c)
+    r02 = 2.0 * (a * c - s * b)
+    r10 = 2.0 * (a * b - s * c)
+    r11 = s * s - a * a + b * b - c * c
+    r12 = 2.0 * (s * a + b * c)
+    r20 = 2.0 * (s * b + a * c)
+    r21 = 2.0 * (b * c - s * a)
+    r22 = s * s - a * a - b * b + c * c
+    out[0] = (fwx + (r00 * fbx + r10 * fby + r20 * fbz)) / mass
+    out[1] = (fwy + (r01 * fbx + r11 * fby + r21 * fbz)) / mass
+    out[2] = (fwz + (r02 * fbx + r12 * fby + r22 * fbz)) / mass
+    if params[P_FIXED_I] != 0.0:
+        A, B, C = params[P_K1], params[P_K2], params[P_K3]
+    else:
+        A, B, C = mass * params[P_K1], mass * params[P_K2], mass * params[P_K3]
+    w1, w2, w3 = y[10], y[11], y[12]
+    out[3] = ((B - C) * w2 * w3 + qx) / A
+    out[4] = ((C - A) * w3 * w1 + qy) / B
+    out[5] = ((A - B) * w1 * w2 + qz) / C
+
+
+@njit(cache=True)
+def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind, stop_radius):  # pragma: no cover - compiled
+    """Advance ``y`` (14,) in place by up to ``n`` velocity-Verlet steps of ``dt`` [s].
+
+    Stops early, after the step in which the lander goes below ``stop_radius`` [m] (0: never)
+    or in which the tank runs dry under non-zero throttle, so the caller can handle that event;
+    ``y_prev`` then holds the state before that last step. Returns the number of steps taken.
+    """
+    a0 = np.empty(6)
+    a1 = np.empty(6)
+    est = np.empty(14)
+    h = 0.5 * dt
+    burning = False
+    for i in range(throttles.shape[0]):
+        if throttles[i] != 0.0:
+            burning = True
+    stop2 = stop_radius * stop_radius
+    for k in range(n):
+        for j in range(14):
+            y_prev[j] = y[j]
+        _accelerations(y, params, force, torque, throttles, wind, a0)
+        fuel_rate = 0.0
+        if params[P_THRUST] != 0.0 and y[13] > 0.0:
+            acc = 0.0
+            for i in range(throttles.shape[0]):
+                acc += throttles[i] * burn[i]
+            fuel_rate = -acc
+        w1, w2, w3 = y[10], y[11], y[12]
+        wh1 = w1 + h * a0[3]
+        wh2 = w2 + h * a0[4]
+        wh3 = w3 + h * a0[5]
+        s, a, b, c = y[6], y[7], y[8], y[9]
+        # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
+        ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
+        da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
+        db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
+        dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
+        s = s + ds * dt
+        a = a + da * dt
+        b = b + db * dt
+        c = c + dc * dt
+        if params[P_RENORM] != 0.0:
+            nq = math.sqrt(s * s + a * a + b * b + c * c)
+            s, a, b, c = s / nq, a / nq, b / nq, c / nq
+        y[6], y[7], y[8], y[9] = s, a, b, c
+        vh0 = y[3] + h * a0[0]
+        vh1 = y[4] + h * a0[1]
+        vh2 = y[5] + h * a0[2]
+        y[0] = y[0] + vh0 * dt
+        y[1] = y[1] + vh1 * dt
+        y[2] = y[2] + vh2 * dt
+        y[13] += fuel_rate * dt
+        if y[13] < 0.0:
+            y[13] = 0.0
+        for j in range(14):
+            est[j] = y[j]
+        est[10] = w1 + dt * a0[3]
+        est[11] = w2 + dt * a0[4]
+        est[12] = w3 + dt * a0[5]
+        est[3] = y[3] + dt * a0[0]
+        est[4] = y[4] + dt * a0[1]
+        est[5] = y[5] + dt * a0[2]
+        _accelerations(est, params, force, torque, throttles, wind, a1)
+        y[10] = wh1 + h * a1[3]
+        y[11] = wh2 + h * a1[4]
+        y[12] = wh3 + h * a1[5]
+        y[3] = vh0 + h * a1[0]
+        y[4] = vh1 + h * a1[1]
+        y[5] = vh2 + h * a1[2]
+        if stop2 > 0.0 and y[0] * y[0] + y[1] * y[1] + y[2] * y[2] < stop2:
+            return k + 1
+        if burning and y[13] <= 0.0:
+            return k + 1
+    return n

@@ -1,0 +1,82 @@
+"""Parachute of the extended program: drag at a body point, lost when overloaded or deployed too fast."""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lander_sim.physics import constants as c
+from lander_sim.physics.models.base import EvalContext
+
+
+class ChuteStatus(enum.Enum):
+    NOT_DEPLOYED = "not_deployed"
+    DEPLOYED = "deployed"
+    LOST = "lost"
+
+
+@dataclass
+class Parachute:
+    """Drag ``F_B = 1/2 rho Cd (pi r^2) |W| W`` applied at ``attach_B``; torque ``attach_B x F_B``.
+
+    ``W = R (wind_W - v_W) - omega_B x attach_B`` is the air velocity relative to the
+    attachment point, body frame. Only a deployed chute pulls. It is lost (for good)
+    when its drag exceeds ``max_drag`` or when deployed faster than ``max_speed``
+    inside the atmosphere; :class:`lander_sim.simulation.Simulation` applies those
+    rules between steps through :meth:`drag_magnitude` and :meth:`deploy`.
+
+    Attributes
+    ----------
+    radius : float
+        Canopy radius [m] (3).
+    cd : float
+        Drag coefficient (2.0).
+    attach_B : ndarray (3,)
+        Attachment point relative to the centre of mass, body frame [m] (``(0, 0, L/2)``).
+    max_drag : float
+        [N] (20 kN).
+    max_speed : float
+        [m/s] (500).
+    status : ChuteStatus
+        Model state (part of snapshots).
+    """
+
+    radius: float = c.PARACHUTE_RADIUS
+    cd: float = c.PARACHUTE_DRAG_COEFFICIENT
+    attach_B: np.ndarray = None  # type: ignore[assignment]
+    max_drag: float = c.PARACHUTE_MAX_DRAG
+    max_speed: float = c.PARACHUTE_MAX_SPEED
+    status: ChuteStatus = ChuteStatus.NOT_DEPLOYED
+    name: str = "parachute"
+    calls: int = 0
+
+    def __post_init__(self) -> None:
+        if self.attach_B is None:
+            self.attach_B = np.array([0.0, 0.0, 0.5 * c.LANDER_SIZE])
+        self._k = 0.5 * self.cd * math.pi * self.radius**2
+
+    def _force_B(self, ctx: EvalContext) -> np.ndarray:
+        y = ctx.y
+        W = ctx.R @ (ctx.inputs.wind_W - y[3:6]) - np.cross(y[10:13], self.attach_B)
+        return (self._k * ctx.rho * math.sqrt(float(W @ W))) * W
+
+    def add(self, ctx: EvalContext, force_W: np.ndarray, force_B: np.ndarray, torque_B: np.ndarray) -> None:
+        self.calls += 1
+        if self.status is not ChuteStatus.DEPLOYED or ctx.rho == 0.0:
+            return
+        F = self._force_B(ctx)
+        force_B += F
+        torque_B += np.cross(self.attach_B, F)
+
+    def drag_magnitude(self, ctx: EvalContext) -> float:
+        """Drag the canopy would pull with in this context [N] (whether deployed or not)."""
+        return float(np.linalg.norm(self._force_B(ctx))) if ctx.rho > 0.0 else 0.0
+
+    def deploy(self, speed: float, inside_atmosphere: bool) -> ChuteStatus:
+        """Deploy if still packed; too fast inside the atmosphere destroys it. Returns the new status."""
+        if self.status is ChuteStatus.NOT_DEPLOYED:
+            too_fast = inside_atmosphere and speed > self.max_speed
+            self.status = ChuteStatus.LOST if too_fast else ChuteStatus.DEPLOYED
+        return self.status

@@ -1,0 +1,180 @@
+"""What the node needs from the core, in one place: build, step, read out, reset.
+
+A thin wrapper over :class:`lander_sim.simulation.Simulation` (no physics here):
+it builds the simulation with the node's overrides, gathers one
+:class:`Readout` per publish tick from ``state()`` and ``derived()``, and
+computes the integrator-health figures the diagnostics report.
+"""
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from lander_sim.physics.events import Event, Phase
+from lander_sim.physics.vehicle import Vehicle
+from lander_sim.scenes import Scene, load_scene
+from lander_sim.simulation import Simulation
+
+#: LanderState.phase values (lander_interfaces/msg/LanderState.msg: PHASE_FLYING=0, LANDED=1, CRASHED=2).
+PHASE_CODE = {Phase.FLYING: 0, Phase.LANDED: 1, Phase.CRASHED: 2}
+
+
+@dataclass(frozen=True)
+class Readout:
+    """One instant of the simulation as the node publishes it (SI units, frames in the names).
+
+    ``q`` is the core's world -> body quaternion ``(s, x, y, z)`` (eq 12-13); the
+    conversion to ROS's body -> world orientation is in :mod:`lander_sim.ros.convert`.
+    """
+
+    t: float
+    r_W: np.ndarray
+    v_W: np.ndarray
+    q: np.ndarray
+    euler: np.ndarray
+    gimbal_lock: bool
+    omega_B: np.ndarray
+    altitude: float
+    climb_rate: float
+    ground_speed: float
+    mass: float
+    fuel: float
+    throttles: np.ndarray
+    phase: int
+    parachute_deployed: bool
+    stabiliser_on: bool
+
+
+class SimAdapter:
+    """The node's handle on one :class:`Simulation` of one scene."""
+
+    def __init__(self, sim: Simulation, seed: int = 0) -> None:
+        self.sim = sim
+        self.seed = seed
+        self._conservative = _is_conservative(sim.scene)
+        self._thrust_used = False
+        self._energy0 = sim.derived().energy
+
+    # --- pass-through -------------------------------------------------------------------------
+
+    @property
+    def scene(self) -> Scene:
+        return self.sim.scene
+
+    @property
+    def vehicle(self) -> Vehicle:
+        return self.sim.scene.vehicle
+
+    @property
+    def dt(self) -> float:
+        return self.sim.dt
+
+    @property
+    def t(self) -> float:
+        return self.sim.t
+
+    @property
+    def flying(self) -> bool:
+        return self.sim.phase is Phase.FLYING
+
+    @property
+    def phase_name(self) -> str:
+        return self.sim.phase.value
+
+    def step(self, n: int) -> None:
+        self.sim.step(n)
+
+    def set_throttles(self, throttles: Sequence[float]) -> None:
+        """Validated by the core (``InputError`` on a bad command, state untouched)."""
+        self.sim.set_throttles(throttles)
+        if any(x != 0.0 for x in throttles):
+            self._thrust_used = True
+
+    def zero_throttles(self) -> None:
+        self.sim.set_throttles(np.zeros(self.vehicle.n_thrusters))
+
+    def set_wind(self, wind_W: Sequence[float]) -> None:
+        self.sim.set_wind(wind_W)
+
+    def set_stabiliser(self, on: bool) -> None:
+        self.sim.set_stabiliser(on)
+
+    def deploy_parachute(self) -> None:
+        self.sim.deploy_parachute()
+
+    def drain_events(self) -> list[Event]:
+        return self.sim.drain_events()
+
+    def reset(self, seed: int | None = None) -> None:
+        """Back to the scene's initial state, bit for bit; ``seed`` re-seeds stochastic models if the core has any."""
+        if seed is not None:
+            self.seed = seed
+        if "seed" in inspect.signature(self.sim.reset).parameters:
+            self.sim.reset(seed=self.seed)  # type: ignore[call-arg]
+        else:
+            self.sim.reset()  # no stochastic models in this core: the seed is only recorded
+        self._thrust_used = False
+        self._energy0 = self.sim.derived().energy
+
+    # --- read-out -----------------------------------------------------------------------------
+
+    def readout(self) -> Readout:
+        s, d = self.sim.state(), self.sim.derived()
+        chute = self.sim.parachute
+        return Readout(
+            t=s.t,
+            r_W=s.r_W,
+            v_W=s.v_W,
+            q=s.q,
+            euler=d.euler,
+            gimbal_lock=d.gimbal_lock,
+            omega_B=s.omega_B,
+            altitude=d.altitude,
+            climb_rate=d.climb_rate,
+            ground_speed=d.ground_speed,
+            mass=d.mass,
+            fuel=s.fuel,
+            throttles=self.sim.throttles,
+            phase=PHASE_CODE[self.sim.phase],
+            parachute_deployed=chute is not None and chute.status.value == "deployed",
+            stabiliser_on=bool(self.sim.stabiliser),
+        )
+
+    def health_values(self) -> dict[str, str]:
+        """Integrator health for the diagnostics: |q| drift always, energy drift where energy is conserved."""
+        d = self.sim.derived()
+        out = {"quaternion_norm_drift": f"{d.quat_norm_error:.3e}", "integrator": self.sim.integrator.name}
+        if self._conservative and not self._thrust_used and self.flying:
+            scale = max(abs(self._energy0), 1e-300)
+            out["energy_relative_drift"] = f"{(d.energy - self._energy0) / scale:.3e}"
+        else:
+            out["energy_relative_drift"] = "n/a (non-conservative: thrust, drag, parachute or touchdown)"
+        return out
+
+
+def _is_conservative(scene: Scene) -> bool:
+    """True when every force model the scene switches on conserves energy (no air, no ground)."""
+    m = scene.models
+    return m.atmosphere is None and m.drag is None and m.parachute is None and m.ground is None
+
+
+def build_simulation(
+    name: str,
+    integrator: str | None = None,
+    dt: float | None = None,
+    gimbal_threshold: float | None = None,
+    seed: int = 0,
+) -> SimAdapter:
+    """Load scene ``name`` (name, alias or path) and build its simulation with the node's overrides.
+
+    Raises ``SceneError`` (unknown scene, bad file) or ``ValueError`` (bad integrator or dt),
+    whose messages name what was wrong.
+    """
+    scene = load_scene(name)
+    if gimbal_threshold is not None:
+        scene = dataclasses.replace(scene, gimbal_threshold=gimbal_threshold)
+    return SimAdapter(Simulation(scene, integrator=integrator, dt=dt), seed=seed)

@@ -1,0 +1,22 @@
+"""Scenes: named YAML files that switch models on, set the vehicle, initial state and integrator."""
+from lander_sim.scenes.loader import (
+    AtmosphereConfig,
+    ConstantForceConfig,
+    DragConfig,
+    GravityConfig,
+    GroundConfig,
+    Models,
+    ParachuteConfig,
+    Scene,
+    SceneError,
+    SceneInfo,
+    list_scenes,
+    load_file,
+    load_scene,
+    parse_scene,
+)
+
+__all__ = [
+    "AtmosphereConfig", "ConstantForceConfig", "DragConfig", "GravityConfig", "GroundConfig", "Models",
+    "ParachuteConfig", "Scene", "SceneError", "SceneInfo", "list_scenes", "load_file", "load_scene", "parse_scene",
+]

@@ -1,0 +1,399 @@
+"""Scene files: YAML -> validated, frozen :class:`Scene`.
+
+Every error is a :class:`SceneError` naming the file, the key path
+(``hover.yaml: models.drag.kind``) and what was expected. Unknown keys are errors.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from lander_sim.integrators import REGISTRY as INTEGRATORS
+from lander_sim.physics import constants as c
+from lander_sim.physics import rotation
+from lander_sim.physics.state import pack
+from lander_sim.physics.vehicle import Vehicle
+from lander_sim.scenes import vehicles
+
+SCENE_DIR = Path(__file__).resolve().parent
+
+
+class SceneError(ValueError):
+    """A scene file is missing, unreadable or invalid; the message names file, key and expectation."""
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """Name, aliases (the original scenario numbers) and one-line description of a packaged scene."""
+
+    name: str
+    aliases: tuple[str, ...]
+    description: str
+    path: Path
+
+
+@dataclass(frozen=True)
+class GravityConfig:
+    """``kind``: ``inverse-square`` (``gm`` [m^3/s^2], planet of ``radius`` [m]) or ``uniform`` (``g_W`` [m/s^2])."""
+
+    kind: str
+    gm: float = c.GM_MARS
+    radius: float = c.MARS_RADIUS
+    g_W: tuple[float, float, float] = (0.0, 0.0, -c.SURFACE_GRAVITY)
+
+
+@dataclass(frozen=True)
+class AtmosphereConfig:
+    surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY
+    scale_height: float = c.ATMOSPHERE_SCALE_HEIGHT
+    exosphere: float = c.EXOSPHERE_ALTITUDE
+
+
+@dataclass(frozen=True)
+class DragConfig:
+    """``kind``: ``sphere`` (``cd``, ``area``) or ``mesh`` (sphere mesh ``radius``, ``centre_B``, ``n_lat`` x ``n_lon``, ``skin_friction``)."""
+
+    kind: str
+    cd: float = c.SPHERE_DRAG_COEFFICIENT
+    area: float = c.SPHERE_DRAG_AREA
+    radius: float = c.LANDER_SIZE
+    centre_B: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    n_lat: int = 12
+    n_lon: int = 24
+    skin_friction: float = 0.005
+
+
+@dataclass(frozen=True)
+class ParachuteConfig:
+    radius: float = c.PARACHUTE_RADIUS
+    cd: float = c.PARACHUTE_DRAG_COEFFICIENT
+    attach_B: tuple[float, float, float] | None = None  # None: (0, 0, L/2)
+    max_drag: float = c.PARACHUTE_MAX_DRAG
+    max_speed: float = c.PARACHUTE_MAX_SPEED
+
+
+@dataclass(frozen=True)
+class ConstantForceConfig:
+    force_W: tuple[float, float, float]
+    point_B: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class GroundConfig:
+    safe_speed: float = 1.0
+
+
+@dataclass(frozen=True)
+class Models:
+    """Which models are on (None = off) and their parameters."""
+
+    gravity: GravityConfig | None = None
+    atmosphere: AtmosphereConfig | None = None
+    drag: DragConfig | None = None
+    parachute: ParachuteConfig | None = None
+    thrusters: bool = False
+    constant_force: ConstantForceConfig | None = None
+    ground: GroundConfig | None = None
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene. ``initial_state`` is the flat ``y`` of :mod:`lander_sim.physics.state`.
+
+    ``translation`` False is a fixed pivot (scene key ``fixed_pivot: true``).
+    ``wind_W`` [m/s] is the initial wind; ``end_time`` [s] the optional ``end.max_time``.
+    """
+
+    name: str
+    description: str
+    vehicle: Vehicle
+    initial_state: np.ndarray
+    attitude: str
+    integrator: str
+    dt: float
+    models: Models
+    translation: bool = True
+    stabiliser: bool = False
+    autopilot: Mapping[str, Any] | None = None
+    gimbal_threshold: float = 1e-3
+    wind_W: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    end_time: float | None = None
+    aliases: tuple[str, ...] = ()
+    source: Path | None = field(default=None, compare=False)
+
+
+# --- validation helpers ------------------------------------------------------
+
+
+class _Reader:
+    """Small typed accessors whose errors name ``file: key.path`` and the expectation."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def fail(self, path: str, msg: str) -> SceneError:
+        return SceneError(f"{self.file}: {path}: {msg}")
+
+    def mapping(self, node: Any, path: str, allowed: set[str], required: tuple[str, ...] = ()) -> dict[str, Any]:
+        if node is None:
+            node = {}
+        if not isinstance(node, dict):
+            raise self.fail(path, f"expected a mapping, got {type(node).__name__} {node!r}")
+        for k in node:
+            if k not in allowed:
+                raise self.fail(f"{path}.{k}" if path else str(k), f"unknown key; allowed keys: {', '.join(sorted(allowed))}")
+        for k in required:
+            if k not in node:
+                raise self.fail(f"{path}.{k}" if path else k, "missing required key")
+        return node
+
+    def number(self, node: Any, path: str, lo: float | None = None, hi: float | None = None, strict_lo: bool = False) -> float:
+        if isinstance(node, bool) or not isinstance(node, (int, float)):
+            raise self.fail(path, f"expected a number, got {node!r}")
+        x = float(node)
+        if not math.isfinite(x):
+            raise self.fail(path, f"expected a finite number, got {node!r}")
+        if lo is not None and (x < lo or (strict_lo and x == lo)):
+            raise self.fail(path, f"expected a number {'>' if strict_lo else '>='} {lo}, got {x}")
+        if hi is not None and x > hi:
+            raise self.fail(path, f"expected a number <= {hi}, got {x}")
+        return x
+
+    def integer(self, node: Any, path: str, lo: int) -> int:
+        if isinstance(node, bool) or not isinstance(node, int) or node < lo:
+            raise self.fail(path, f"expected an integer >= {lo}, got {node!r}")
+        return node
+
+    def vector(self, node: Any, path: str, n: int = 3) -> tuple[float, ...]:
+        if not isinstance(node, list) or len(node) != n:
+            raise self.fail(path, f"expected a list of {n} numbers, got {node!r}")
+        return tuple(self.number(x, f"{path}[{i}]") for i, x in enumerate(node))
+
+    def boolean(self, node: Any, path: str) -> bool:
+        if not isinstance(node, bool):
+            raise self.fail(path, f"expected true or false, got {node!r}")
+        return node
+
+    def string(self, node: Any, path: str) -> str:
+        if not isinstance(node, str):
+            raise self.fail(path, f"expected a string, got {node!r}")
+        return node
+
+    def choice(self, node: Any, path: str, choices: tuple[str, ...]) -> str:
+        if node not in choices:
+            raise self.fail(path, f"expected one of {', '.join(choices)}, got {node!r}")
+        return node
+
+
+_TOP = {
+    "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "dt", "fixed_pivot",
+    "models", "stabiliser", "gimbal_threshold", "wind_W", "autopilot", "end",
+}
+_MODELS = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "constant_force", "ground"}
+
+
+def _vehicle(rd: _Reader, node: Any) -> Vehicle:
+    if isinstance(node, dict) and "preset" in node:
+        v = rd.mapping(node, "vehicle", {"preset", "thrusters", "disabled", "size"})
+        rd.choice(v["preset"], "vehicle.preset", tuple(vehicles.PRESETS))
+        layout = rd.choice(v.get("thrusters", "standard"), "vehicle.thrusters", vehicles.THRUSTER_LAYOUTS)
+        dis = v.get("disabled", [])
+        if not isinstance(dis, list):
+            raise rd.fail("vehicle.disabled", f"expected a list of thruster indices 0..3, got {dis!r}")
+        idx = tuple(rd.integer(i, f"vehicle.disabled[{k}]", 0) for k, i in enumerate(dis))
+        for k, i in enumerate(idx):
+            if i > 3:
+                raise rd.fail(f"vehicle.disabled[{k}]", f"expected a thruster index 0..3, got {i}")
+        size = rd.number(v.get("size", c.LANDER_SIZE), "vehicle.size", 0.0, strict_lo=True)
+        return vehicles.PRESETS[v["preset"]](thrusters=layout, disabled=idx, size=size)
+    v = rd.mapping(node, "vehicle", {"preset", "dry_mass", "fuel_capacity", "inertia", "size"}, ("dry_mass", "inertia"))
+    inertia = rd.vector(v["inertia"], "vehicle.inertia")
+    for i, x in enumerate(inertia):
+        if x <= 0.0:
+            raise rd.fail(f"vehicle.inertia[{i}]", f"expected a positive moment of inertia, got {x}")
+    return Vehicle(
+        dry_mass=rd.number(v["dry_mass"], "vehicle.dry_mass", 0.0, strict_lo=True),
+        fuel_capacity=rd.number(v.get("fuel_capacity", 0.0), "vehicle.fuel_capacity", 0.0),
+        inertia_diag=inertia,  # type: ignore[arg-type]
+        size=rd.number(v.get("size", 1.0), "vehicle.size", 0.0, strict_lo=True),
+    )
+
+
+def _on(m: dict[str, Any], key: str) -> bool:
+    """A model is on when its key holds a mapping (``{}`` for defaults); absent, null or false is off."""
+    return m.get(key) not in (None, False)
+
+
+def _models(rd: _Reader, node: Any) -> Models:
+    m = rd.mapping(node, "models", _MODELS)
+    out: dict[str, Any] = {}
+    if _on(m, "gravity"):
+        g = rd.mapping(m["gravity"], "models.gravity", {"kind", "gm", "radius", "g_W"}, ("kind",))
+        kind = rd.choice(g["kind"], "models.gravity.kind", ("inverse-square", "uniform"))
+        kw: dict[str, Any] = {}
+        if "gm" in g:
+            kw["gm"] = rd.number(g["gm"], "models.gravity.gm", 0.0, strict_lo=True)
+        if "radius" in g:
+            kw["radius"] = rd.number(g["radius"], "models.gravity.radius", 0.0, strict_lo=True)
+        if "g_W" in g:
+            kw["g_W"] = rd.vector(g["g_W"], "models.gravity.g_W")
+        out["gravity"] = GravityConfig(kind=kind, **kw)
+    if _on(m, "atmosphere"):
+        a = rd.mapping(m["atmosphere"], "models.atmosphere", {"surface_density", "scale_height", "exosphere"})
+        out["atmosphere"] = AtmosphereConfig(
+            **{k: rd.number(v, f"models.atmosphere.{k}", 0.0, strict_lo=True) for k, v in a.items()}
+        )
+    if _on(m, "drag"):
+        d = rd.mapping(m["drag"], "models.drag", {"kind", "cd", "area", "radius", "centre_B", "n_lat", "n_lon", "skin_friction"}, ("kind",))
+        kind = rd.choice(d["kind"], "models.drag.kind", ("sphere", "mesh"))
+        allowed = {"kind", "cd", "area"} if kind == "sphere" else {"kind", "radius", "centre_B", "n_lat", "n_lon", "skin_friction"}
+        rd.mapping(d, "models.drag", allowed)
+        kw = {}
+        for k in ("cd", "area", "radius", "skin_friction"):
+            if k in d:
+                kw[k] = rd.number(d[k], f"models.drag.{k}", 0.0)
+        for k in ("n_lat", "n_lon"):
+            if k in d:
+                kw[k] = rd.integer(d[k], f"models.drag.{k}", 2)
+        if "centre_B" in d:
+            kw["centre_B"] = rd.vector(d["centre_B"], "models.drag.centre_B")
+        out["drag"] = DragConfig(kind=kind, **kw)
+    if _on(m, "parachute"):
+        p = rd.mapping(m["parachute"], "models.parachute", {"radius", "cd", "attach_B", "max_drag", "max_speed"})
+        kw = {k: rd.number(v, f"models.parachute.{k}", 0.0, strict_lo=True) for k, v in p.items() if k != "attach_B"}
+        if "attach_B" in p:
+            kw["attach_B"] = rd.vector(p["attach_B"], "models.parachute.attach_B")
+        out["parachute"] = ParachuteConfig(**kw)
+    if _on(m, "thrusters"):
+        rd.mapping(m["thrusters"], "models.thrusters", set())
+        out["thrusters"] = True
+    if _on(m, "constant_force"):
+        f = rd.mapping(m["constant_force"], "models.constant_force", {"force_W", "point_B"}, ("force_W", "point_B"))
+        out["constant_force"] = ConstantForceConfig(
+            rd.vector(f["force_W"], "models.constant_force.force_W"), rd.vector(f["point_B"], "models.constant_force.point_B")
+        )
+    if _on(m, "ground"):
+        g = rd.mapping(m["ground"], "models.ground", {"safe_speed"})
+        out["ground"] = GroundConfig(**{k: rd.number(v, f"models.ground.{k}", 0.0, strict_lo=True) for k, v in g.items()})
+    models = Models(**out)
+    planet = models.gravity is not None and models.gravity.kind == "inverse-square"
+    for key in ("atmosphere", "ground"):
+        if getattr(models, key) is not None and not planet:
+            raise rd.fail(f"models.{key}", "needs a planet: expected models.gravity.kind: inverse-square")
+    for key in ("drag", "parachute"):
+        if getattr(models, key) is not None and models.atmosphere is None:
+            raise rd.fail(f"models.{key}", "needs air: expected models.atmosphere to be switched on")
+    return models
+
+
+def _initial(rd: _Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
+    i = rd.mapping(node, "initial", {"position_W", "velocity_W", "attitude", "omega_B", "fuel"})
+    r = rd.vector(i.get("position_W", [0, 0, 0]), "initial.position_W")
+    v = rd.vector(i.get("velocity_W", [0, 0, 0]), "initial.velocity_W")
+    w = rd.vector(i.get("omega_B", [0, 0, 0]), "initial.omega_B")
+    fuel = rd.number(i.get("fuel", vehicle.fuel_capacity), "initial.fuel", 0.0, vehicle.fuel_capacity)
+    att = rd.mapping(i.get("attitude", {"quaternion": [1, 0, 0, 0]}), "initial.attitude", {"quaternion", "euler_deg"})
+    if len(att) != 1:
+        raise rd.fail("initial.attitude", "expected exactly one of quaternion (s, x, y, z) or euler_deg (ZXZ, degrees)")
+    if "quaternion" in att:
+        q = np.array(rd.vector(att["quaternion"], "initial.attitude.quaternion", 4))
+        if np.linalg.norm(q) == 0.0:
+            raise rd.fail("initial.attitude.quaternion", "expected a non-zero quaternion")
+        q = rotation.quat_normalise(q)
+        a = q if mode == "quaternion" else rotation.quat_to_euler(q)
+    else:
+        E = np.radians(rd.vector(att["euler_deg"], "initial.attitude.euler_deg"))
+        a = E if mode == "euler" else rotation.euler_to_quat(E)
+    return pack(np.array(r), np.array(v), a, np.array(w), fuel)
+
+
+def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
+    """Validate already-parsed YAML ``data``; ``file`` names it in errors."""
+    rd = _Reader(file)
+    top = rd.mapping(data, "", _TOP, ("vehicle", "initial", "dt"))
+    name = rd.string(top.get("name", Path(file).stem), "name")
+    aliases_node = top.get("aliases", [])
+    if not isinstance(aliases_node, list):
+        raise rd.fail("aliases", f"expected a list of strings, got {aliases_node!r}")
+    aliases = tuple(str(rd.string(a, f"aliases[{k}]")) for k, a in enumerate(aliases_node))
+    mode = rd.choice(top.get("attitude_mode", "quaternion"), "attitude_mode", ("quaternion", "euler"))
+    integ = rd.choice(top.get("integrator", "verlet"), "integrator", tuple(sorted(INTEGRATORS)))
+    vehicle = _vehicle(rd, top["vehicle"])
+    models = _models(rd, top.get("models"))
+    if models.thrusters and vehicle.n_thrusters == 0:
+        raise rd.fail("models.thrusters", "the vehicle has no thrusters: use vehicle.preset: lander")
+    autopilot = top.get("autopilot")
+    if autopilot is not None:
+        if not isinstance(autopilot, dict) or not isinstance(autopilot.get("controller"), str):
+            raise rd.fail("autopilot", f"expected null or a mapping with a string 'controller' key, got {autopilot!r}")
+    end = rd.mapping(top.get("end"), "end", {"max_time"})
+    end_time = rd.number(end["max_time"], "end.max_time", 0.0, strict_lo=True) if "max_time" in end else None
+    return Scene(
+        name=name,
+        description=rd.string(top.get("description", ""), "description"),
+        vehicle=vehicle,
+        initial_state=_initial(rd, top["initial"], vehicle, mode),
+        attitude=mode,
+        integrator=integ,
+        dt=rd.number(top["dt"], "dt", 0.0, strict_lo=True),
+        models=models,
+        translation=not rd.boolean(top.get("fixed_pivot", False), "fixed_pivot"),
+        stabiliser=rd.boolean(top.get("stabiliser", False), "stabiliser"),
+        autopilot=autopilot,
+        gimbal_threshold=rd.number(top.get("gimbal_threshold", 1e-3), "gimbal_threshold", 0.0, 1.0, strict_lo=True),
+        wind_W=rd.vector(top.get("wind_W", [0, 0, 0]), "wind_W"),  # type: ignore[arg-type]
+        end_time=end_time,
+        aliases=aliases,
+        source=source,
+    )
+
+
+def load_file(path: str | Path) -> Scene:
+    """Load and validate one scene file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as e:
+        raise SceneError(f"{p}: cannot read scene file: {e.strerror}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise SceneError(f"{p.name}: not valid YAML: {e}") from None
+    return parse_scene(data, p.name, p)
+
+
+def _packaged() -> list[Path]:
+    return sorted(SCENE_DIR.glob("*.yaml"))
+
+
+def list_scenes() -> list[SceneInfo]:
+    """The packaged scenes, sorted by name."""
+    infos = []
+    for p in _packaged():
+        data = yaml.safe_load(p.read_text()) or {}
+        infos.append(
+            SceneInfo(
+                name=str(data.get("name", p.stem)),
+                aliases=tuple(str(a) for a in data.get("aliases", []) or []),
+                description=str(data.get("description", "")),
+                path=p,
+            )
+        )
+    return sorted(infos, key=lambda i: i.name)
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """A packaged scene by name or alias (``"hover"``, ``"7"``), or a YAML file by path."""
+    s = str(name_or_path)
+    if s.endswith((".yaml", ".yml")) or Path(s).is_file():
+        return load_file(s)
+    for info in list_scenes():
+        if s == info.name or s in info.aliases:
+            return load_file(info.path)
+    names = ", ".join(f"{i.name}" + (f" ({'/'.join(i.aliases)})" if i.aliases else "") for i in list_scenes())
+    raise SceneError(f"unknown scene {s!r}; choose one of: {names}")

@@ -1,0 +1,400 @@
+"""The Simulation: steps a scene, takes inputs, reports events and derived quantities.
+
+No ROS here: the node (``lander_sim.node``) drives this object. Inputs are piecewise
+constant over a step. Bad input raises :class:`lander_sim.errors.InputError`, leaves
+the state untouched and is counted in :attr:`Simulation.rejected`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from lander_sim import integrators
+from lander_sim.errors import InputError
+from lander_sim.physics import rotation
+from lander_sim.physics.dynamics import LanderDynamics
+from lander_sim.physics.events import Event, EventKind, Phase
+from lander_sim.physics.models import (
+    Atmosphere,
+    ChuteStatus,
+    ConstantForce,
+    ForceModel,
+    Ground,
+    Inputs,
+    InverseSquareGravity,
+    MeshDrag,
+    Parachute,
+    SphereDrag,
+    Thrusters,
+    UniformGravity,
+    sphere_mesh,
+)
+from lander_sim.physics.models.stabiliser import stabilise
+from lander_sim.physics.rigid_body import kinetic_energy
+from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W, StateView
+from lander_sim.scenes import Scene
+
+__all__ = ["Derived", "Event", "EventKind", "Phase", "Simulation", "Snapshot", "build_dynamics"]
+
+
+def build_dynamics(scene: Scene, inputs: Inputs) -> LanderDynamics:
+    """The models a scene switches on, composed into a :class:`LanderDynamics` (others are not built at all)."""
+    cfg = scene.models
+    models: list[ForceModel] = []
+    planet_radius = 0.0
+    if cfg.gravity is not None:
+        if cfg.gravity.kind == "inverse-square":
+            models.append(InverseSquareGravity(gm=cfg.gravity.gm))
+            planet_radius = cfg.gravity.radius
+        else:
+            models.append(UniformGravity(g_W=np.array(cfg.gravity.g_W, dtype=float)))
+    atmosphere = None
+    if cfg.atmosphere is not None:
+        a = cfg.atmosphere
+        atmosphere = Atmosphere(a.surface_density, a.scale_height, a.exosphere)
+    if cfg.drag is not None:
+        d = cfg.drag
+        if d.kind == "sphere":
+            models.append(SphereDrag(cd=d.cd, area=d.area))
+        else:
+            c_B, n_B, areas = sphere_mesh(d.radius * scene.vehicle.size, np.array(d.centre_B), d.n_lat, d.n_lon)
+            models.append(MeshDrag(c_B, n_B, areas, skin_friction=d.skin_friction))
+    if cfg.parachute is not None:
+        p = cfg.parachute
+        attach = np.array(p.attach_B if p.attach_B is not None else (0.0, 0.0, 0.5 * scene.vehicle.size))
+        models.append(Parachute(radius=p.radius, cd=p.cd, attach_B=attach, max_drag=p.max_drag, max_speed=p.max_speed))
+    if cfg.thrusters:
+        models.append(Thrusters(scene.vehicle))
+    if cfg.constant_force is not None:
+        f = cfg.constant_force
+        models.append(ConstantForce(np.array(f.force_W, dtype=float), np.array(f.point_B, dtype=float)))
+    return LanderDynamics(
+        scene.vehicle, models, scene.attitude, scene.translation, inputs, atmosphere, planet_radius  # type: ignore[arg-type]
+    )
+
+
+@dataclass(frozen=True)
+class Derived:
+    """Quantities derived from the state (SI units).
+
+    Attributes
+    ----------
+    altitude : float
+        ``|r_W| - R`` [m] (distance from the origin in planet-less scenes).
+    climb_rate : float
+        ``v_W . r_hat`` [m/s].
+    ground_speed : float
+        Horizontal speed ``|v_W - (v_W . r_hat) r_hat|`` [m/s] (planet rotation ignored).
+    mass : float
+        [kg].
+    kinetic_energy : float
+        Translational (if translation is on) + rotational kinetic energy [J].
+    potential_energy : float
+        Gravity (``-GM m / |r|`` or ``-m g . r``) + the constant force's potential [J].
+    energy : float
+        Sum of the two [J] (conserved when only conservative models are on).
+    angular_momentum_W : ndarray (3,)
+        Spin angular momentum ``R^T I omega_B`` about the centre of mass (or pivot), world frame [kg m^2/s].
+    euler : ndarray (3,)
+        ZXZ angles (phi, theta, psi) [rad].
+    gimbal_lock : bool
+        ``|sin theta| < gimbal_threshold``.
+    quat_norm_error : float
+        ``|q| - 1`` (0 in Euler mode).
+    """
+
+    altitude: float
+    climb_rate: float
+    ground_speed: float
+    mass: float
+    kinetic_energy: float
+    potential_energy: float
+    energy: float
+    angular_momentum_W: np.ndarray
+    euler: np.ndarray
+    gimbal_lock: bool
+    quat_norm_error: float
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Everything needed to continue bit-exactly from an instant (see :meth:`Simulation.restore`)."""
+
+    y: np.ndarray
+    k: int
+    throttles: np.ndarray
+    wind_W: np.ndarray
+    phase: Phase
+    chute: ChuteStatus | None
+    stabiliser: bool
+    near_lock: bool
+    fuel_out: bool
+
+
+class Simulation:
+    """Steps a :class:`~lander_sim.scenes.Scene` with a fixed step.
+
+    Parameters
+    ----------
+    scene : Scene
+    integrator : str, optional
+        Overrides the scene's integrator (a name of ``lander_sim.integrators.REGISTRY``).
+    dt : float, optional
+        Overrides the scene's step [s].
+    """
+
+    def __init__(self, scene: Scene, integrator: str | None = None, dt: float | None = None) -> None:
+        self.scene = scene
+        self.integrator = integrators.make(integrator or scene.integrator)
+        step = scene.dt if dt is None else dt
+        if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0):
+            raise InputError(f"dt must be a positive finite number of seconds, got {step!r}")
+        self.dt = float(step)
+        self.inputs = Inputs(throttles=np.zeros(scene.vehicle.n_thrusters), wind_W=np.array(scene.wind_W, dtype=float))
+        self.dynamics = build_dynamics(scene, self.inputs)
+        self.ground: Ground | None = None
+        if scene.models.ground is not None and scene.models.gravity is not None:
+            self.ground = Ground(scene.models.gravity.radius, scene.vehicle.size, scene.models.ground.safe_speed)
+        chute = self.dynamics.model("parachute")
+        self.parachute: Parachute | None = chute if isinstance(chute, Parachute) else None
+        self.rejected: dict[str, int] = {"throttles": 0, "wind": 0, "parachute": 0, "stabiliser": 0}
+        self.y = np.empty_like(scene.initial_state)
+        self._y_prev = np.empty_like(self.y)
+        self.reset()
+
+    # --- lifecycle ---------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Back to the scene's initial state at t = 0 (the ``rejected`` counts are kept)."""
+        np.copyto(self.y, self.scene.initial_state)
+        self._k = 0
+        self.inputs.throttles[:] = 0.0
+        self.inputs.wind_W[:] = self.scene.wind_W
+        self.phase = Phase.FLYING
+        self.stabiliser = self.scene.stabiliser
+        self._events: list[Event] = []
+        self._fuel_out = False
+        self._near_lock = False
+        if self.parachute is not None:
+            self.parachute.status = ChuteStatus.NOT_DEPLOYED
+        self._check_gimbal()
+
+    @property
+    def t(self) -> float:
+        """Simulation time [s]; counted in whole steps so it never drifts."""
+        return self._k * self.dt
+
+    # --- inputs ----------------------------------------------------------------
+
+    def _reject(self, kind: str, msg: str) -> InputError:
+        self.rejected[kind] = self.rejected.get(kind, 0) + 1
+        return InputError(msg)
+
+    def set_throttles(self, throttles: Sequence[float]) -> None:
+        """Throttle per thruster, each in [0, 1]; held until changed. Forced to 0 once landed or out of fuel."""
+        try:
+            t = np.asarray(throttles, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise self._reject("throttles", f"throttles must be a sequence of numbers, got {throttles!r}") from None
+        n = self.scene.vehicle.n_thrusters
+        if t.shape != (n,):
+            raise self._reject("throttles", f"throttles must have {n} values (one per thruster), got {t.size}")
+        for i, x in enumerate(t):
+            if not math.isfinite(x) or x < 0.0 or x > 1.0:
+                raise self._reject("throttles", f"throttles[{i}] must be a finite number in [0, 1], got {float(x)!r}")
+        if self.phase is Phase.FLYING and not self._fuel_out:
+            self.inputs.throttles[:] = t
+
+    def set_wind(self, wind_W: Sequence[float]) -> None:
+        """Wind velocity, world frame [m/s]; used by the drag and parachute models."""
+        try:
+            w = np.asarray(wind_W, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise self._reject("wind", f"wind must be 3 numbers (world frame, m/s), got {wind_W!r}") from None
+        if w.shape != (3,) or not np.all(np.isfinite(w)):
+            raise self._reject("wind", f"wind must be 3 finite numbers (world frame, m/s), got {wind_W!r}")
+        self.inputs.wind_W[:] = w
+
+    def set_stabiliser(self, on: bool) -> None:
+        """Switch the attitude stabiliser aid on or off."""
+        if not isinstance(on, (bool, np.bool_)):
+            raise self._reject("stabiliser", f"stabiliser must be true or false, got {on!r}")
+        self.stabiliser = bool(on)
+
+    def deploy_parachute(self) -> ChuteStatus:
+        """Deploy the parachute (lost at once if faster than its limit inside the atmosphere)."""
+        if self.parachute is None:
+            raise self._reject("parachute", f"scene {self.scene.name!r} has no parachute (models.parachute is off)")
+        before = self.parachute.status
+        ctx = self.dynamics.fill_context(self.y)
+        speed = float(np.linalg.norm(self.inputs.wind_W - self.y[V_W]))
+        inside = self.dynamics.atmosphere is not None and ctx.altitude < self.dynamics.atmosphere.exosphere
+        status = self.parachute.deploy(speed, inside)
+        if status is not before:
+            kind = EventKind.PARACHUTE_DEPLOYED if status is ChuteStatus.DEPLOYED else EventKind.PARACHUTE_LOST
+            self._emit(kind, f"parachute {status.value} at airspeed {speed:.1f} m/s", {"airspeed": speed})
+        return status
+
+    # --- stepping --------------------------------------------------------------
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of ``dt``. After touchdown the clock runs on with the state frozen."""
+        y, y_prev, dyn, integ, dt = self.y, self._y_prev, self.dynamics, self.integrator, self.dt
+        for _ in range(n):
+            if self.phase is not Phase.FLYING:
+                self._k += 1
+                continue
+            np.copyto(y_prev, y)
+            integ.step(dyn, self._k * dt, y, dt)
+            self._k += 1
+            self._after_step()
+
+    def advance_to(self, t: float) -> None:
+        """Step until the clock reaches ``t`` [s] (to the step grid, never beyond by a whole step)."""
+        n = math.ceil((t - self.t) / self.dt - 1e-9)
+        if n > 0:
+            self.step(n)
+
+    def _after_step(self) -> None:
+        y = self.y
+        if self.ground is not None and self.ground.below(y[R_W]):
+            self._touchdown()
+            return
+        if not self._fuel_out and self.inputs.throttles.size and y[FUEL] <= 0.0:
+            self._fuel_out = True
+            self.inputs.throttles[:] = 0.0
+            self._emit(EventKind.FUEL_EMPTY, "out of fuel: throttles forced to 0", {})
+        if self.parachute is not None and self.parachute.status is ChuteStatus.DEPLOYED:
+            drag = self.parachute.drag_magnitude(self.dynamics.fill_context(y))
+            if drag > self.parachute.max_drag:
+                self.parachute.status = ChuteStatus.LOST
+                self._emit(EventKind.PARACHUTE_LOST, f"parachute torn off by {drag:.0f} N of drag", {"drag": drag})
+        if self.stabiliser:
+            stabilise(y, self.scene.attitude)  # type: ignore[arg-type]
+        self._check_gimbal()
+
+    def _touchdown(self) -> None:
+        """Interpolate to the impact instant inside the last step, classify, freeze."""
+        g, y, y0 = self.ground, self.y, self._y_prev
+        assert g is not None
+        s = g.impact_fraction(y0[R_W], y[R_W])
+        y[:] = y0 + s * (y - y0)
+        if self.scene.attitude == "quaternion":
+            y[ATT] = rotation.quat_normalise(y[ATT])
+        td = g.classify(s, y[R_W], y[V_W])
+        y[V_W] = 0.0
+        y[OMEGA_B] = 0.0
+        self.inputs.throttles[:] = 0.0
+        self.phase = Phase.CRASHED if td.crashed else Phase.LANDED
+        t_impact = (self._k - 1 + s) * self.dt
+        values = {"t_impact": t_impact, "descent_rate": td.descent_rate, "ground_speed": td.ground_speed}
+        kind = EventKind.CRASHED if td.crashed else EventKind.LANDED
+        detail = f"{kind.value} at t = {t_impact:.3f} s: descent rate {td.descent_rate:.2f} m/s, ground speed {td.ground_speed:.2f} m/s"
+        self._emit(kind, detail, values, t=t_impact)
+
+    def _check_gimbal(self) -> None:
+        """Warn once on entering the near-lock region of the Euler angles (Euler mode only)."""
+        if self.scene.attitude != "euler":
+            return
+        near = rotation.near_gimbal_lock(self.y[EULER], self.scene.gimbal_threshold)
+        if near and not self._near_lock:
+            st = abs(math.sin(self.y[7]))
+            self._emit(
+                EventKind.GIMBAL_LOCK,
+                f"Euler angles near gimbal lock: |sin theta| = {st:.3g} < {self.scene.gimbal_threshold:g}; "
+                "eq 5 is ill-conditioned and the angles may jump",
+                {"sin_theta": st},
+            )
+        self._near_lock = near
+
+    def _emit(self, kind: EventKind, detail: str, values: dict[str, float], t: float | None = None) -> None:
+        self._events.append(Event(kind, self.t if t is None else t, detail, values))
+
+    def drain_events(self) -> list[Event]:
+        """Events since the last call, oldest first."""
+        ev, self._events = self._events, []
+        return ev
+
+    # --- reading ---------------------------------------------------------------
+
+    def state(self) -> StateView:
+        """A read-only copy of the current state (quaternion and Euler angles both filled in)."""
+        y = self.y
+        if self.scene.attitude == "quaternion":
+            q = y[ATT].copy()
+            E = rotation.quat_to_euler(q)
+        else:
+            E = y[EULER].copy()
+            q = rotation.euler_to_quat(E)
+        return StateView(self.t, y[R_W].copy(), y[V_W].copy(), q, E, y[OMEGA_B].copy(), float(y[FUEL]))
+
+    @property
+    def throttles(self) -> np.ndarray:
+        """The throttles in force (a copy)."""
+        return self.inputs.throttles.copy()
+
+    def derived(self) -> Derived:
+        """Altitude, climb rate, ground speed, mass, energy, angular momentum, Euler angles, gimbal flag."""
+        y, dyn = self.y, self.dynamics
+        r, v, w = y[R_W], y[V_W], y[OMEGA_B]
+        rn = float(np.linalg.norm(r))
+        rhat = r / rn if rn > 0.0 else np.zeros(3)
+        climb = float(v @ rhat)
+        ground_speed = float(np.linalg.norm(v - climb * rhat))
+        mass = dyn.vehicle.mass(float(y[FUEL]))
+        R = dyn.rotation_matrix(y)
+        A, B, C = dyn.inertia(float(y[FUEL]))
+        ke = kinetic_energy(A, B, C, w) + (0.5 * mass * float(v @ v) if dyn.translation else 0.0)
+        pe = sum(m.potential(r, R, mass) for m in dyn.models if hasattr(m, "potential"))  # type: ignore[attr-defined]
+        L_W = R.T @ np.array([A * w[0], B * w[1], C * w[2]])
+        if self.scene.attitude == "quaternion":
+            E = rotation.quat_to_euler(y[ATT])
+            qerr = math.sqrt(float(y[ATT] @ y[ATT])) - 1.0
+        else:
+            E = y[EULER].copy()
+            qerr = 0.0
+        return Derived(
+            altitude=rn - dyn.planet_radius,
+            climb_rate=climb,
+            ground_speed=ground_speed,
+            mass=mass,
+            kinetic_energy=ke,
+            potential_energy=float(pe),
+            energy=ke + float(pe),
+            angular_momentum_W=L_W,
+            euler=E,
+            gimbal_lock=rotation.near_gimbal_lock(E, self.scene.gimbal_threshold),
+            quat_norm_error=qerr,
+        )
+
+    # --- determinism -----------------------------------------------------------
+
+    def snapshot(self) -> Snapshot:
+        """A copy of everything that determines the future (state, clock, inputs, phase, model state)."""
+        return Snapshot(
+            y=self.y.copy(),
+            k=self._k,
+            throttles=self.inputs.throttles.copy(),
+            wind_W=self.inputs.wind_W.copy(),
+            phase=self.phase,
+            chute=None if self.parachute is None else self.parachute.status,
+            stabiliser=self.stabiliser,
+            near_lock=self._near_lock,
+            fuel_out=self._fuel_out,
+        )
+
+    def restore(self, snap: Snapshot) -> None:
+        """Return bit-exactly to a :meth:`snapshot` of this simulation."""
+        np.copyto(self.y, snap.y)
+        self._k = snap.k
+        self.inputs.throttles[:] = snap.throttles
+        self.inputs.wind_W[:] = snap.wind_W
+        self.phase = snap.phase
+        if self.parachute is not None and snap.chute is not None:
+            self.parachute.status = snap.chute
+        self.stabiliser = snap.stabiliser
+        self._near_lock = snap.near_lock
+        self._fuel_out = snap.fuel_out

@@ -1,0 +1,1 @@
+"""Tools around the simulation: the `lander` command line, launcher, recorder, analysis, sweeps."""

@@ -1,0 +1,112 @@
+"""The `lander` command line: one subcommand per module in ``lander_tools/commands/``.
+
+A subcommand module ``lander_tools/commands/<name>.py`` exposes::
+
+    def add_arguments(parser: argparse.ArgumentParser) -> None   # declare its options
+    def run(args: argparse.Namespace) -> int                     # do it; return the exit code
+
+Only the module of the subcommand being run is imported, so ``lander --help`` stays fast and a
+broken or missing subcommand cannot break the others. Errors are one line and never a traceback
+for user mistakes: argparse errors (unknown subcommand/option) exit 2, and a ``ValueError`` raised
+by a subcommand (bad scene, bad file, bad value) is printed as ``lander <cmd>: <message>``, exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from types import ModuleType
+from typing import NoReturn, Sequence
+
+# Known subcommands and their one-line summaries, in the order --help lists them. A module added
+# to lander_tools/commands/ without an entry here is still found (with a generic summary).
+SUMMARIES: dict[str, str] = {
+    "fly": "fly a scenario: simulator + autopilot on this machine, optionally recorded to a bag",
+    "scenes": "list the scenarios that `lander fly` accepts",
+    "design": "control design report for a scenario (linearisation, gains, poles)",
+    "analyse": "metrics and plots from recorded flights (bags)",
+    "bench": "run a benchmark from bench/",
+    "sweep": "run a parameter sweep without ROS (many flights, in parallel)",
+}
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are a single line (no usage block), exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def _command_names() -> list[str]:
+    from lander_tools import commands
+
+    found = {m.name for m in pkgutil.iter_modules(commands.__path__) if not m.name.startswith("_")}
+    return [n for n in SUMMARIES] + sorted(found - set(SUMMARIES))
+
+
+def _load(name: str) -> ModuleType:
+    """Import the subcommand module; a missing one raises ValueError with a one-line reason."""
+    try:
+        return importlib.import_module(f"lander_tools.commands.{name}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"lander_tools.commands.{name}":
+            raise ValueError("not available in this version (lander_tools/commands/"
+                             f"{name}.py is missing)") from None
+        raise ValueError(f"cannot load: missing module {exc.name!r}") from None
+
+
+def build_parser(load: str | None = None) -> _Parser:
+    """The full parser; only subcommand ``load`` (if any) gets its arguments (import is lazy)."""
+    parser = _Parser(
+        prog="lander",
+        description="Mars lander simulation: fly scenarios, design controllers, analyse flights.",
+        epilog="Run 'lander COMMAND --help' for a command's options.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in _command_names():
+        summary = SUMMARIES.get(name, f"the '{name}' command")
+        p = sub.add_parser(name, help=summary, description=summary[:1].upper() + summary[1:] + ".")
+        if name == load:
+            module = _load(name)
+            module.add_arguments(p)
+            p.set_defaults(_run=module.run)
+    return parser
+
+
+def _requested(argv: Sequence[str], names: list[str]) -> str | None:
+    """The subcommand named in argv: the first argument not starting with '-'."""
+    for arg in argv:
+        if not arg.startswith("-"):
+            return arg if arg in names else None
+    return None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    name = _requested(argv, _command_names())
+    try:
+        parser = build_parser(load=name)
+    except ValueError as exc:
+        print(f"lander {name}: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    try:
+        return int(args._run(args) or 0)
+    except ValueError as exc:  # user errors (SceneError, InputError, ...) are ValueError subclasses
+        message = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"lander {args.command}: {message}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"lander {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

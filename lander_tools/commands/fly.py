@@ -1,0 +1,67 @@
+"""``lander fly SCENE``: launch simulator + autopilot on this machine, fly, optionally record.
+
+``SCENE`` may also be a scripted flight (``flights/*.yaml``, see docs/flying.md), which
+brings its own controller, timeline and end condition. Exit status: 0 landed or time
+limit, 1 crashed, 2 error, 130 interrupted (see :mod:`lander_tools.launcher`).
+Heavy imports (rclpy) happen in :func:`run`.
+"""
+
+import argparse
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", metavar="SCENE",
+                        help="scenario name or alias (see 'lander scenes'), a scene YAML file, or a scripted flight YAML")
+    parser.add_argument("--controller", metavar="NAME",
+                        help="autopilot controller plug-in (default: the scene's; 'none' flies the sim alone)")
+    parser.add_argument("--record", metavar="BAG", type=Path, help="record the flight to this rosbag2 folder")
+    parser.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="bag storage (default mcap)")
+    parser.add_argument("--topics", nargs="+", metavar="TOPIC", help="topics to record (default: all the flight's)")
+    parser.add_argument("--duration", metavar="S", type=float, help="stop after this much simulated time, s")
+    parser.add_argument("--speed", metavar="X", type=float, default=None,
+                        help="simulated seconds per wall-clock second (default 1.0; 0 = as fast as possible)")
+    parser.add_argument("--params", metavar="FILE", type=Path,
+                        help="ROS parameters YAML for the nodes (sections lander_sim / lander_autopilot)")
+    parser.add_argument("--compose", action="store_true", help="run sim and autopilot in one process (faster)")
+    parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
+                        help="sim waits for the autopilot's answer to every state (default: on with an autopilot)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress line even on a terminal")
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from lander_tools.launcher import EXIT_ERROR, LaunchError, FlightPlan, fly, summary
+    from lander_tools.progress import Progress
+    from lander_tools.scripted import ScriptError, is_script, load_script
+
+    try:
+        if is_script(args.scene):
+            plan = load_script(args.scene).plan(record=args.record, storage=args.storage)
+            if args.controller is not None:
+                plan.controller = args.controller
+            if args.duration is not None:
+                plan.duration = args.duration
+            if args.speed is not None:
+                plan.speed = args.speed
+            plan.params_file = args.params or plan.params_file
+        else:
+            plan = FlightPlan(
+                scene=args.scene, controller=args.controller, duration=args.duration,
+                speed=1.0 if args.speed is None else args.speed, lockstep=args.lockstep,
+                params_file=args.params, record=args.record, storage=args.storage,
+            )
+        if args.topics:
+            plan.topics = tuple(args.topics)
+        plan.compose = plan.compose or args.compose
+        if args.lockstep is not None:
+            plan.lockstep = args.lockstep
+        plan.__post_init__()
+    except (LaunchError, ScriptError) as exc:
+        print(f"lander fly: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    progress = Progress(enabled=False if args.no_progress else None, total=plan.duration)
+    result = fly(plan, progress=progress)
+    print(summary(result))
+    return result.exit_code

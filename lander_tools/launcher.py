@@ -1,0 +1,654 @@
+"""``lander fly``: start the simulator and the autopilot, fly, record, stop cleanly.
+
+The launcher for machines without ``ros2 launch`` (ROS 2 from PyPI); on a full
+install ``ros2 launch mars_lander fly.launch.py`` starts the same two nodes
+(``launch/fly.launch.py``). Run (project venv)::
+
+    ./dev fly hover --duration 60 --speed 0 --record out/hover
+    ./dev fly free-spin                      # no autopilot in the scene: the sim alone
+    ./dev fly 7 --controller altitude-p --params my.yaml --compose
+
+What it does:
+
+1. writes one ROS parameters file per node (``lander_sim``, ``autopilot``)
+   from the flight's settings, after the user's ``--params`` file;
+2. starts the sim node (paused) and, when the scene or ``--controller`` names a
+   controller, the autopilot node, as separate processes (or both in one
+   process with ``--compose``), forwarding their output line by line with a
+   ``[sim]`` / ``[autopilot]`` prefix;
+3. records (``--record``) from inside this process with :class:`~lander_tools.recorder.Recorder`,
+   waits until the nodes and the recorder have discovered each other, resets the
+   sim (so state 1 at t = 0 reaches everyone) and resumes it;
+4. applies the flight's timeline (demand-altitude steps, wind gusts, controller
+   swaps, throttle overrides) at the first state at or after each instant;
+5. ends on landing or crash, at the time limit (sim time), on Ctrl-C/SIGTERM or
+   when a node dies; stops the nodes, autopilot first (SIGINT, then SIGTERM,
+   then SIGKILL after a grace period), closes the bag (noting the end time and
+   outcome in its metadata) and prints a summary.
+
+Exit status (documented in docs/flying.md):
+
+====  ===========================================================
+0     landed, or the time limit was reached while flying
+1     crashed
+2     error: a node failed to start or died, bad configuration,
+      no state from the simulator
+130   interrupted by Ctrl-C / SIGTERM (the bag is still closed validly)
+====  ===========================================================
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+EXIT_OK = 0
+EXIT_CRASHED = 1
+EXIT_ERROR = 2
+EXIT_INTERRUPTED = 130
+
+SIM_NODE = "lander_sim"
+AUTOPILOT_NODE = "autopilot"
+#: Wall seconds allowed for discovery, service answers and the first state.
+STARTUP_TIMEOUT = 30.0
+#: Wall seconds without a new state (while not paused) after which the flight is an error.
+STALL_TIMEOUT = 30.0
+#: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
+STOP_GRACE = 5.0
+
+ACTION_KINDS = ("demand_altitude", "wind", "controller", "throttle", "stabiliser", "parachute")
+
+
+class LaunchError(ValueError):
+    """A flight that cannot be launched as configured; the message names the setting."""
+
+
+@dataclass(frozen=True)
+class Action:
+    """One timeline entry, applied at the first state with sim time >= ``t`` [s].
+
+    ``kind`` / ``value``:
+
+    * ``demand_altitude``: float, metres above the surface -> ``/lander/demand_altitude``
+    * ``wind``: 3 floats, world frame m/s -> ``/lander/wind`` (frame ``mars``)
+    * ``controller``: controller name (``value``) and ``params`` (mapping) ->
+      ``/autopilot/switch_controller``
+    * ``throttle``: list of throttles in [0, 1], held (re-sent with every state, so the sim's
+      staleness limit never zeroes it) until ``until`` [s]; then zeros are sent once
+    * ``stabiliser``: bool -> ``/lander/set_stabiliser``
+    * ``parachute``: ignored value -> ``/lander/deploy_parachute``
+    """
+
+    t: float
+    kind: str
+    value: Any = None
+    until: float | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class FlightPlan:
+    """Everything a flight needs. ``controller``: ``None`` = the scene's autopilot, ``"none"`` = no autopilot."""
+
+    scene: str
+    controller: str | None = None
+    controller_params: dict[str, Any] = field(default_factory=dict)
+    duration: float | None = None
+    speed: float = 1.0
+    lockstep: bool | None = None
+    params_file: Path | None = None
+    sim_params: dict[str, Any] = field(default_factory=dict)
+    autopilot_params: dict[str, Any] = field(default_factory=dict)
+    record: Path | None = None
+    storage: str = "mcap"
+    topics: tuple[str, ...] | None = None
+    compose: bool = False
+    timeline: list[Action] = field(default_factory=list)
+    end_on: tuple[str, ...] = ("landed", "crashed")
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
+            raise LaunchError(f"duration = {self.duration!r}: must be a finite number of seconds > 0")
+        if not (math.isfinite(self.speed) and self.speed >= 0):
+            raise LaunchError(f"speed = {self.speed!r}: must be >= 0 (0 = as fast as possible)")
+        for a in self.timeline:
+            if a.kind not in ACTION_KINDS:
+                raise LaunchError(f"timeline action {a.kind!r} is not known; choose one of {', '.join(ACTION_KINDS)}")
+        bad = [e for e in self.end_on if e not in ("landed", "crashed")]
+        if bad:
+            raise LaunchError(f"end_on {bad}: allowed are landed, crashed")
+        if self.params_file is not None and not Path(self.params_file).is_file():
+            raise LaunchError(f"--params {self.params_file}: no such file")
+
+
+@dataclass
+class FlightResult:
+    """How a flight ended."""
+
+    outcome: str  #: landed | crashed | time-limit | interrupted | error
+    exit_code: int
+    sim_time: float
+    states: int
+    message: str = ""
+    counts: dict[str, int] = field(default_factory=dict)
+    bag: Path | None = None
+    wall_time: float = 0.0
+
+
+def resolve_controller(plan: FlightPlan) -> str | None:
+    """The controller to fly, or ``None`` for the sim alone (scene without autopilot, or ``none``)."""
+    if plan.controller is not None:
+        return None if plan.controller.lower() == "none" else plan.controller
+    try:
+        from lander_sim.scenes import load_scene
+
+        scene = load_scene(plan.scene)
+    except ValueError as exc:
+        raise LaunchError(str(exc)) from None
+    ap = getattr(scene, "autopilot", None)
+    if ap is None:
+        return None
+    return getattr(ap, "controller", None) or (ap.get("controller") if isinstance(ap, dict) else None)
+
+
+# --- child processes --------------------------------------------------------------------------
+
+
+class NodeProcess:
+    """A node in its own process, with its output forwarded line by line under a prefix."""
+
+    def __init__(self, name: str, argv: list[str], out: TextIO, env: dict[str, str] | None = None) -> None:
+        self.name = name
+        self.argv = argv
+        # Own session: a terminal's Ctrl-C reaches only the launcher, which then stops the
+        # nodes in order (nodes first, bag last) instead of all at once.
+        self.proc = subprocess.Popen(
+            argv,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
+            start_new_session=True,
+            text=True,
+            bufsize=1,
+        )
+        self.lines: list[str] = []  # last lines, for error messages
+        self._thread = threading.Thread(target=self._forward, args=(out,), daemon=True)
+        self._thread.start()
+
+    def _forward(self, out: TextIO) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines = (self.lines + [line.rstrip()])[-20:]
+            out.write(f"[{self.name}] {line}")
+            out.flush()
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, grace: float = STOP_GRACE) -> int | None:
+        """SIGINT (the nodes' clean exit), then SIGTERM, then SIGKILL; returns the exit code."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            if self.proc.poll() is not None:
+                break
+            try:
+                self.proc.send_signal(sig)
+                self.proc.wait(timeout=grace)
+            except subprocess.TimeoutExpired:
+                continue
+            except ProcessLookupError:
+                break
+        self._thread.join(timeout=2.0)
+        return self.proc.returncode
+
+
+def pilot_mode(plan: FlightPlan, controller: str | None) -> bool:
+    """True when the launcher itself answers the sim in lockstep (no autopilot; throttle
+    overrides in the timeline, or ``lockstep`` asked for): timeline actions then happen
+    exactly at the state they are due and the flight stops exactly at its time limit."""
+    if controller is not None:
+        return False
+    return plan.lockstep is True or (plan.lockstep is None and any(a.kind == "throttle" for a in plan.timeline))
+
+
+def _params_yaml(node: str, params: dict[str, Any], folder: Path) -> Path:
+    path = folder / f"{node}.params.yaml"
+    path.write_text(yaml.safe_dump({node: {"ros__parameters": params}}, sort_keys=True))
+    return path
+
+
+def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dict[str, list[str]]:
+    """The command lines of the node processes (``sim``, ``autopilot`` or ``composed``)."""
+    sim_params = {"scene": plan.scene, "speed": float(plan.speed), "start_paused": True}
+    if controller is not None:
+        sim_params["lockstep"] = plan.lockstep is not False
+    else:
+        sim_params["lockstep"] = pilot_mode(plan, controller)
+        # The sim alone holds the last command (the user's or the timeline's) for good.
+        sim_params["command_timeout"] = 0.0
+    sim_params.update(plan.sim_params)
+    files = []
+    if plan.params_file is not None:
+        files += ["--params-file", str(plan.params_file)]
+    sim_file = _params_yaml(SIM_NODE, sim_params, folder)
+    py = sys.executable
+    cmds = {}
+    ap_args: list[str] = []
+    if controller is not None:
+        ap_params: dict[str, Any] = {"scene": plan.scene, "controller": controller, "use_sim_time": True}
+        if plan.controller_params:
+            ap_params["controller_params"] = yaml.safe_dump(
+                dict(plan.controller_params), default_flow_style=True, sort_keys=True
+            ).strip()
+        ap_params.update(plan.autopilot_params)
+        ap_args = ["--params-file", str(_params_yaml(AUTOPILOT_NODE, ap_params, folder))]
+    if plan.compose and controller is not None:
+        cmds["composed"] = [py, "-m", "lander_tools.launcher", "--composed", "--ros-args", *files,
+                            "--params-file", str(sim_file), *ap_args]
+    else:
+        cmds["sim"] = [py, "-m", "lander_sim.node", "--ros-args", *files, "--params-file", str(sim_file)]
+        if controller is not None:
+            cmds["autopilot"] = [py, "-m", "lander_autopilot.node", "--ros-args", *files, *ap_args]
+    return cmds
+
+
+def composed_main(argv: list[str]) -> int:
+    """Both nodes in one process and one executor (``--compose``): no inter-process hops.
+
+    The sim node's own loop drives the executor, so the autopilot's callbacks run
+    between the sim's ticks.
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from lander_autopilot.node import AutopilotNode
+    from lander_sim.node import SimNode
+
+    rclpy.init(args=argv)
+    nodes: list[Any] = []
+    try:
+        sim = SimNode()
+        nodes.append(sim)
+        ap = AutopilotNode()
+        nodes.append(ap)
+        executor = SingleThreadedExecutor()
+        executor.add_node(sim)
+        executor.add_node(ap)
+        sim.run(executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as exc:
+        print(f"composed: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    finally:
+        for n in nodes:
+            n.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+# --- the supervisor ---------------------------------------------------------------------------
+
+
+class _Supervisor:
+    """The launcher's own node: watches the flight, applies the timeline, records."""
+
+    def __init__(self, plan: FlightPlan, controller: str | None, out: TextIO, progress: Any) -> None:
+        import rclpy
+        from geometry_msgs.msg import Vector3Stamped
+        from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
+        from lander_interfaces.srv import Reset
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64
+        from std_srvs.srv import SetBool, Trigger
+
+        from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
+
+        self.plan, self.controller, self.out, self.progress = plan, controller, out, progress
+        self.node = rclpy.create_node("lander_fly")
+        n = self.node
+        reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", latched)
+        self.pub_wind = n.create_publisher(Vector3Stamped, "/lander/wind", reliable)
+        self.pub_throttle = n.create_publisher(ThrottleCommand, "/lander/throttle", reliable)
+        self.cli_reset = n.create_client(Reset, "/lander/reset")
+        self.cli_resume = n.create_client(Trigger, "/lander/resume")
+        self.cli_stab = n.create_client(SetBool, "/lander/set_stabiliser")
+        self.cli_chute = n.create_client(Trigger, "/lander/deploy_parachute")
+        self.cli_switch = None
+        if controller is not None:
+            from lander_interfaces.srv import SwitchController
+
+            self.cli_switch = n.create_client(SwitchController, "/autopilot/switch_controller")
+        self.types = {"Float64": Float64, "Vector3Stamped": Vector3Stamped, "ThrottleCommand": ThrottleCommand}
+        self.LanderState, self.FlightEvent = LanderState, FlightEvent
+        self.state: Any = None
+        self.states = 0
+        self.t = 0.0
+        self.last_state_wall = time.monotonic()
+        self.end: str | None = None
+        self.touchdown: float | None = None
+        self.pending = sorted(plan.timeline, key=lambda a: a.t)
+        self.held_throttle: Action | None = None
+        self.futures: list[Any] = []
+        #: This node answers every state (lockstep) when the flight has no autopilot.
+        self.pilot = pilot_mode(plan, controller)
+        n.create_subscription(LanderState, "/lander/state", self._on_state, reliable)
+        n.create_subscription(FlightEvent, "/lander/events", self._on_event, QoSProfile(depth=1000))
+        self.recorder = None
+        if plan.record is not None:
+            meta = {"scene": plan.scene, "controller": controller or "none", "speed": str(plan.speed)}
+            meta.update({k: str(v) for k, v in plan.sim_params.items()})
+            meta.update(plan.meta)
+            self.recorder = Recorder(n, RecorderConfig(plan.record, plan.storage, plan.topics or DEFAULT_TOPICS, meta=meta))
+
+    # callbacks ------------------------------------------------------------------------------
+    def _on_state(self, msg: Any) -> None:
+        self.state = msg
+        self.states += 1
+        self.t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self.last_state_wall = time.monotonic()
+        self.progress.update(self.t, msg.altitude)
+        if self.end is None:
+            if msg.phase == self.LanderState.PHASE_LANDED and "landed" in self.plan.end_on:
+                self.end = "landed"
+            elif msg.phase == self.LanderState.PHASE_CRASHED and "crashed" in self.plan.end_on:
+                self.end = "crashed"
+            elif self.plan.duration is not None and self.t >= self.plan.duration - 1e-9:
+                self.end = "time-limit"
+        if self.end is not None:
+            return  # no more actions or answers: in lockstep the sim now waits to be paused
+        self._apply_due()
+        held = self.held_throttle
+        if held is not None and held.until is not None and self.t >= held.until - 1e-9:
+            self.held_throttle = held = None
+            if not self.pilot:
+                self._send_throttle([0.0] * len(msg.throttles), 0)
+        if self.pilot:
+            # Lockstep pilot of a flight without autopilot: answer every state, so overrides
+            # start and stop exactly at the state they are due.
+            self._send_throttle(held.value if held is not None else [0.0] * len(msg.throttles), msg.sequence)
+        elif held is not None:
+            self._send_throttle(held.value, 0)
+
+    def _on_event(self, msg: Any) -> None:
+        if msg.kind in (self.FlightEvent.LANDED, self.FlightEvent.CRASHED) and msg.values:
+            self.touchdown = float(msg.values[0])
+        if msg.kind in (self.FlightEvent.LANDED, self.FlightEvent.CRASHED, self.FlightEvent.GIMBAL_LOCK,
+                        self.FlightEvent.CONTROLLER_SWITCHED, self.FlightEvent.FUEL_OUT):
+            self.out.write(f"[fly] event at t = {msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec:.2f} s: {msg.detail}\n")
+
+    def _send_throttle(self, values: list[float], seq: int) -> None:
+        m = self.types["ThrottleCommand"]()
+        m.header.stamp = self.state.header.stamp
+        m.state_sequence = int(seq)  # 0: an override that answers no particular state
+        m.throttles = [float(v) for v in values]
+        self.pub_throttle.publish(m)
+
+    def _apply_due(self) -> None:
+        while self.pending and self.pending[0].t <= self.t + 1e-9:
+            self.apply(self.pending.pop(0))
+
+    def apply(self, a: Any) -> None:
+        """Carry out one timeline action now."""
+        from std_srvs.srv import SetBool, Trigger
+
+        self.out.write(f"[fly] t = {self.t:.2f} s: {a.kind} {a.value if a.value is not None else ''}\n")
+        if a.kind == "demand_altitude":
+            m = self.types["Float64"]()
+            m.data = float(a.value)
+            self.pub_demand.publish(m)
+        elif a.kind == "wind":
+            m = self.types["Vector3Stamped"]()
+            m.header.stamp = self.state.header.stamp if self.state is not None else m.header.stamp
+            m.header.frame_id = "mars"
+            m.vector.x, m.vector.y, m.vector.z = (float(v) for v in a.value)
+            self.pub_wind.publish(m)
+        elif a.kind == "throttle":
+            self.held_throttle = a  # sent with the answer to the current state (see _on_state)
+        elif a.kind == "controller":
+            if self.cli_switch is None:
+                raise LaunchError(f"timeline: controller swap at t = {a.t} needs an autopilot, but this flight has none")
+            req = self.cli_switch.srv_type.Request()
+            req.controller = str(a.value)
+            req.parameters_yaml = yaml.safe_dump(a.params) if a.params else ""
+            self.futures.append(("switch_controller", self.cli_switch.call_async(req)))
+        elif a.kind == "stabiliser":
+            req = SetBool.Request()
+            req.data = bool(a.value)
+            self.futures.append(("set_stabiliser", self.cli_stab.call_async(req)))
+        elif a.kind == "parachute":
+            self.futures.append(("deploy_parachute", self.cli_chute.call_async(Trigger.Request())))
+
+    def check_futures(self) -> None:
+        for name, fut in list(self.futures):
+            if fut.done():
+                self.futures.remove((name, fut))
+                res = fut.result()
+                ok = getattr(res, "success", True)
+                self.out.write(f"[fly] {name}: {'ok' if ok else 'FAILED'}: {getattr(res, 'message', '')}\n")
+
+
+def _call(executor: Any, client: Any, request: Any, timeout: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout
+    while not client.service_is_ready():
+        if time.monotonic() > deadline:
+            raise LaunchError(f"{what}: service {client.srv_name} not available within {timeout} s")
+        executor.spin_once(timeout_sec=0.05)
+    fut = client.call_async(request)
+    while not fut.done():
+        if time.monotonic() > deadline:
+            raise LaunchError(f"{what}: no answer from {client.srv_name} within {timeout} s")
+        executor.spin_once(timeout_sec=0.05)
+    return fut.result()
+
+
+def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: dict[str, str] | None = None) -> FlightResult:
+    """Fly ``plan`` to its end and return how it ended (see the module docstring for the steps).
+
+    Must run in the main thread (it installs SIGINT/SIGTERM handlers for the duration).
+    """
+    import rclpy
+    from lander_interfaces.srv import Reset
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from std_srvs.srv import Trigger
+
+    from lander_tools.progress import Progress
+
+    out = out or sys.stdout
+    progress = progress or Progress(total=plan.duration)
+    wall0 = time.monotonic()
+    controller = resolve_controller(plan)
+    stop_reason: list[str] = []
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        stop_reason.append(signal.Signals(signum).name)
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    tmp = tempfile.TemporaryDirectory(prefix="lander-fly-")
+    procs: dict[str, NodeProcess] = {}
+    sup: _Supervisor | None = None
+    result: FlightResult | None = None
+    ctx_started = False
+    try:
+        cmds = node_commands(plan, controller, Path(tmp.name))
+        rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
+        ctx_started = True
+        sup = _Supervisor(plan, controller, out, progress)
+        executor = SingleThreadedExecutor()
+        executor.add_node(sup.node)
+        for name, argv in cmds.items():
+            procs[name] = NodeProcess(name, argv, out, env)
+        out.write(
+            f"[fly] scene {plan.scene!r}, controller {controller or 'none (sim alone)'}, "
+            f"speed {plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in procs.items()) + "\n"
+        )
+
+        def check_children() -> None:
+            for name, p in procs.items():
+                if not p.alive():
+                    tail = "\n".join(p.lines[-5:])
+                    raise _NodeDied(f"node process {name!r} exited with code {p.proc.returncode}" + (f":\n{tail}" if tail else ""))
+
+        # Discovery: the nodes' endpoints and (if recording) the recorder's subscriptions.
+        deadline = time.monotonic() + STARTUP_TIMEOUT
+        need = ["/lander/state", "/clock"] + (["/lander/throttle", "/autopilot/status"] if controller else [])
+
+        def ready() -> bool:
+            n = sup.node
+            sims = [x for x, _ in n.get_node_names_and_namespaces() if x == SIM_NODE]
+            if len(sims) > 1:
+                raise LaunchError(
+                    f"{len(sims)} simulator nodes in ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}: "
+                    "another flight is running there; set ROS_DOMAIN_ID (0-101) to keep flights apart"
+                )
+            if not sup.cli_reset.service_is_ready() or n.count_publishers("/lander/state") < 1:
+                return False
+            own_state_subs = 1 + int(sup.recorder is not None and "/lander/state" in sup.recorder.subscribed())
+            if controller is not None and (
+                n.count_subscribers("/lander/state") <= own_state_subs or n.count_publishers("/lander/throttle") < 2
+            ):
+                return False  # the autopilot listens to states and has its command publisher up
+            if sup.recorder is not None:
+                sup.recorder.discover()
+                return all(t in sup.recorder.subscribed() for t in need)
+            return True
+
+        while not ready():
+            check_children()
+            if stop_reason:
+                raise _Interrupted()
+            if time.monotonic() > deadline:
+                raise LaunchError(f"nodes not ready within {STARTUP_TIMEOUT} s (waiting for {', '.join(need)} and /lander/reset)")
+            executor.spin_once(timeout_sec=0.05)
+        # Reset republishes state 1 at t = 0 now that everyone listens; retried if it was missed.
+        for attempt in range(5):
+            seen = sup.states
+            _call(executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
+            t_wait = time.monotonic() + 1.0
+            while sup.states == seen and time.monotonic() < t_wait:
+                executor.spin_once(timeout_sec=0.02)
+            if sup.states > seen:
+                break
+        else:
+            raise LaunchError("no state from the simulator after reset")
+        sup._apply_due()  # actions at t = 0 (e.g. the first demand) before the first step
+        _call(executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
+        sup.last_state_wall = time.monotonic()
+        while sup.end is None:
+            if stop_reason:
+                raise _Interrupted()
+            check_children()
+            if time.monotonic() - sup.last_state_wall > STALL_TIMEOUT:
+                raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
+            executor.spin_once(timeout_sec=0.05)
+            sup.check_futures()
+        # Stop at once, autopilot first: in lockstep the sim then waits for an answer that never
+        # comes, so it cannot run on (a pause request can wait behind a busy lockstep loop).
+        _stop_all(procs)
+        code = EXIT_CRASHED if sup.end == "crashed" else EXIT_OK
+        result = FlightResult(sup.end, code, sup.t, sup.states)
+    except _Interrupted:
+        result = FlightResult("interrupted", EXIT_INTERRUPTED, sup.t if sup else 0.0, sup.states if sup else 0,
+                              f"stopped by {stop_reason[0] if stop_reason else 'signal'}")
+    except _NodeDied as exc:
+        result = FlightResult("error", EXIT_ERROR, sup.t if sup else 0.0, sup.states if sup else 0, str(exc))
+    except (LaunchError, ValueError, OSError) as exc:
+        result = FlightResult("error", EXIT_ERROR, sup.t if sup else 0.0, sup.states if sup else 0, str(exc))
+    finally:
+        progress.finish()
+        _stop_all(procs)
+        if sup is not None and sup.recorder is not None and result is not None:
+            _drain(sup, executor)  # what the nodes sent before they stopped is still queued here
+        if sup is not None and sup.recorder is not None:
+            if result is not None:
+                # The flight's end, so analysis can ignore states the sim produced while stopping.
+                sup.recorder.writer.set_custom_data("end_time", repr(sup.t))
+                sup.recorder.writer.set_custom_data("outcome", result.outcome)
+            counts = sup.recorder.close()
+            if result is not None:
+                result.counts, result.bag = counts, plan.record
+            out.write(sup.recorder.summary() + "\n")
+        if sup is not None:
+            sup.node.destroy_node()
+        if ctx_started:
+            rclpy.try_shutdown()
+        tmp.cleanup()
+        for s, h in old.items():
+            signal.signal(s, h)
+    assert result is not None
+    result.wall_time = time.monotonic() - wall0
+    if sup is not None and sup.touchdown is not None:
+        result.message = (result.message + f" touchdown speed {sup.touchdown:.3f} m/s").strip()
+    return result
+
+
+def _stop_all(procs: dict[str, NodeProcess]) -> None:
+    """Signal every node to stop (autopilot first), then wait for each (see NodeProcess.stop)."""
+    order = sorted(procs.values(), key=lambda p: p.name != "autopilot")
+    for p in order:
+        if p.alive():
+            try:
+                p.proc.send_signal(signal.SIGINT)
+            except ProcessLookupError:
+                pass
+    for p in order:
+        p.stop()
+
+
+def _drain(sup: _Supervisor, executor: Any, quiet: float = 0.2, limit: float = 3.0) -> None:
+    """Spin until no message has arrived for ``quiet`` s (bounded), so queued messages reach the bag."""
+    rec = sup.recorder
+    t_end = time.monotonic() + limit
+    last, t_quiet = -1, time.monotonic() + quiet
+    while time.monotonic() < min(t_end, t_quiet):
+        executor.spin_once(timeout_sec=0.02)
+        total = sum(rec.counts.values())
+        if total != last:
+            last, t_quiet = total, time.monotonic() + quiet
+
+
+class _Interrupted(Exception):
+    pass
+
+
+class _NodeDied(Exception):
+    pass
+
+
+def summary(result: FlightResult) -> str:
+    """The short flight summary ``lander fly`` prints."""
+    rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
+    lines = [
+        f"flight ended: {result.outcome} at t = {result.sim_time:.2f} s "
+        f"({result.states} states, {result.wall_time:.1f} s wall, RTF {rtf:.1f}x), exit code {result.exit_code}"
+    ]
+    if result.message:
+        lines.append(f"  {result.message}")
+    if result.bag is not None:
+        lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages)")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--composed":
+        sys.exit(composed_main(sys.argv[:1] + sys.argv[2:]))
+    print("usage: lander fly SCENE ... (this module is the launcher behind `lander fly`)", file=sys.stderr)
+    sys.exit(EXIT_ERROR)

@@ -1,0 +1,296 @@
+"""``lander record``: record topics to a rosbag2 bag (our own ``ros2 bag record`` for PyPI ROS).
+
+Run (project venv)::
+
+    ./dev exec python -m lander_tools.recorder -o out/flight          # default topics, MCAP
+    ./dev exec python -m lander_tools.recorder -o out/f --storage sqlite3 /lander/state /clock
+    ./dev exec python -m lander_tools.recorder -o out/f --all          # every topic seen
+
+Subscriptions are made with ``raw=True``: the CDR bytes go straight into a
+``rosbags`` Writer, never deserialised. Topics are discovered by name and type
+from the ROS graph (a topic that appears later is picked up when it appears);
+the subscription's reliability and durability follow the publishers'
+(reliable when every publisher is), with a deep queue so bursts are kept.
+
+The bag is MCAP by default (each connection's message definition embedded as
+the schema, so any MCAP reader can decode it) or sqlite3 on request. It is
+closed validly on Ctrl-C, SIGTERM, when a watched node leaves the graph, or when
+the owner calls :meth:`Recorder.close`; the count of messages written per topic
+is reported.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+#: What ``lander fly`` records by default: everything the sim and the autopilot publish, plus
+#: the inputs (wind, demand altitude, throttle) and the clock.
+DEFAULT_TOPICS: tuple[str, ...] = (
+    "/clock",
+    "/lander/state",
+    "/lander/odom",
+    "/lander/pose",
+    "/lander/throttle",
+    "/lander/wind",
+    "/lander/demand_altitude",
+    "/lander/events",
+    "/lander/markers",
+    "/autopilot/status",
+    "/diagnostics",
+)
+#: Subscription queue depth: deep enough to hold seconds of the fastest topic at 1 kHz.
+QUEUE_DEPTH = 2000
+
+
+class RecorderError(ValueError):
+    """Bad recorder configuration (unknown storage, existing output, bad topic name)."""
+
+
+@dataclass
+class RecorderConfig:
+    """What to record and where.
+
+    Attributes
+    ----------
+    output : Path
+        Bag folder to create (must not exist).
+    storage : str
+        ``"mcap"`` (default) or ``"sqlite3"``.
+    topics : tuple of str
+        Topic names to record; ignored when ``all_topics``.
+    all_topics : bool
+        Record every topic that appears (except ``/rosout`` and parameter events).
+    meta : dict
+        ``custom_data`` written into the bag's metadata (scene, controller, ...).
+    """
+
+    output: Path
+    storage: str = "mcap"
+    topics: tuple[str, ...] = DEFAULT_TOPICS
+    all_topics: bool = False
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        from lander_tools.bagio import STORAGES
+
+        self.output = Path(self.output)
+        if self.storage not in STORAGES:
+            raise RecorderError(f"storage {self.storage!r} is not known; choose one of {', '.join(STORAGES)}")
+        if self.output.exists():
+            raise RecorderError(f"output {self.output} exists already; the recorder never overwrites a bag")
+        bad = [t for t in self.topics if not t.startswith("/")]
+        if bad:
+            raise RecorderError(f"topic names must be absolute (start with '/'): {', '.join(bad)}")
+
+
+def _message_class(msgtype: str) -> Any:
+    """The rclpy message class of ``pkg/msg/Name``."""
+    pkg, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+
+
+class Recorder:
+    """Records topics of a ROS graph into a rosbag2 bag, from inside a given node.
+
+    Owning the node is the caller's business (the launcher shares its node; the
+    stand-alone :func:`main` makes one). Call :meth:`discover` periodically (a
+    timer is created for it) and :meth:`close` once at the end.
+    """
+
+    _SKIP = ("/rosout", "/parameter_events")
+
+    def __init__(self, node: Any, config: RecorderConfig, discovery_period: float = 0.1) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        from lander_tools.bagio import lander_typestore
+
+        self.node = node
+        self.config = config
+        self.typestore = lander_typestore()
+        plugin = StoragePlugin.MCAP if config.storage == "mcap" else StoragePlugin.SQLITE3
+        self.writer = Writer(config.output, version=9, storage_plugin=plugin)
+        for k, v in config.meta.items():
+            self.writer.set_custom_data(str(k), str(v))
+        self.writer.open()
+        self._lock = threading.Lock()  # writer calls from callbacks vs. close from a signal path
+        self._conns: dict[str, Any] = {}
+        self._subs: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        self.closed = False
+        self.discover()
+        self._timer = node.create_timer(discovery_period, self.discover)
+
+    # --- discovery ---------------------------------------------------------------------------
+
+    def wanted(self, topic: str) -> bool:
+        if self.config.all_topics:
+            return not topic.startswith(self._SKIP)
+        return topic in self.config.topics
+
+    def discover(self) -> None:
+        """Subscribe to every wanted topic now visible in the graph and not yet subscribed."""
+        if self.closed:
+            return
+        for topic, types in self.node.get_topic_names_and_types():
+            if topic in self._subs or not self.wanted(topic) or not types:
+                continue
+            self._subscribe(topic, types[0])
+
+    def _qos(self, topic: str) -> Any:
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+        pubs = self.node.get_publishers_info_by_topic(topic)
+        reliable = bool(pubs) and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in pubs)
+        latched = bool(pubs) and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in pubs)
+        # A reliable subscription would not match a best-effort publisher: follow the publishers.
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=QUEUE_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE if reliable or not pubs else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+        )
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        from lander_tools.bagio import BagError, register_msgtype
+
+        try:
+            cls = _message_class(msgtype)
+            register_msgtype(self.typestore, msgtype)
+        except (ImportError, AttributeError, BagError) as exc:
+            self.node.get_logger().warning(f"not recording {topic}: type {msgtype} unavailable ({exc})")
+            self._subs[topic] = None
+            return
+        with self._lock:
+            if self.closed:
+                return
+            self._conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.typestore)
+            self.counts[topic] = 0
+        self._subs[topic] = self.node.create_subscription(
+            cls, topic, self._writer_for(topic), self._qos(topic), raw=True
+        )
+
+    def _writer_for(self, topic: str) -> Callable[[bytes], None]:
+        conn = self._conns[topic]
+        write = self.writer.write
+        counts = self.counts
+        lock = self._lock
+
+        def on_message(data: bytes) -> None:
+            # Receive time (wall clock, ns); analysis maps it to sim time through /clock.
+            t = time.time_ns()
+            with lock:
+                if not self.closed:
+                    write(conn, t, data)
+                    counts[topic] += 1
+
+        return on_message
+
+    def subscribed(self) -> list[str]:
+        return sorted(t for t, s in self._subs.items() if s is not None)
+
+    # --- end ---------------------------------------------------------------------------------
+
+    def close(self) -> dict[str, int]:
+        """Stop recording and write the bag's index and metadata; returns messages per topic."""
+        with self._lock:
+            if self.closed:
+                return dict(self.counts)
+            self.closed = True
+            self.writer.close()
+        try:
+            self._timer.cancel()
+            for sub in self._subs.values():
+                if sub is not None:
+                    self.node.destroy_subscription(sub)
+        except Exception:  # noqa: BLE001 - the node may already be gone at shutdown
+            pass
+        return dict(self.counts)
+
+    def summary(self) -> str:
+        """One line per topic: messages written."""
+        width = max((len(t) for t in self.counts), default=5)
+        lines = [f"bag {self.config.output} ({self.config.storage}):"]
+        lines += [f"  {t:<{width}}  {n:>8d} messages" for t, n in sorted(self.counts.items())]
+        lines.append(f"  {'total':<{width}}  {sum(self.counts.values()):>8d} messages")
+        return "\n".join(lines)
+
+
+def node_alive(node: Any, full_name: str) -> bool:
+    """True while a node called ``full_name`` (e.g. ``/lander_sim``) is in the graph."""
+    for name, ns in node.get_node_names_and_namespaces():
+        if (ns.rstrip("/") + "/" + name) == full_name:
+            return True
+    return False
+
+
+def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    p = parser or argparse.ArgumentParser(prog="lander record", description=__doc__.split("\n\n")[0])
+    p.add_argument("topics", nargs="*", help=f"topics to record (default: {' '.join(DEFAULT_TOPICS)})")
+    p.add_argument("-o", "--output", required=True, help="bag folder to create")
+    p.add_argument("--storage", default="mcap", help="mcap (default) or sqlite3")
+    p.add_argument("--all", action="store_true", help="record every topic that appears")
+    p.add_argument(
+        "--stop-when-gone",
+        metavar="NODE",
+        help="close the bag when this node (e.g. /lander_sim) leaves the graph after having been seen",
+    )
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Stand-alone recorder: runs until Ctrl-C / SIGTERM (or the watched node is gone)."""
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        config = RecorderConfig(
+            Path(args.output), args.storage, tuple(args.topics) or DEFAULT_TOPICS, bool(args.all)
+        )
+    except RecorderError as exc:
+        print(f"lander record: {exc}", file=sys.stderr)
+        return 2
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        stop.set()
+
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    node = rclpy.create_node("lander_recorder")
+    rec = Recorder(node, config)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    seen = False
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.05)
+            if args.stop_when_gone:
+                alive = node_alive(node, args.stop_when_gone)
+                seen = seen or alive
+                if seen and not alive:
+                    node.get_logger().info(f"{args.stop_when_gone} left the graph: closing the bag")
+                    break
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        rec.close()
+        print(rec.summary())
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,136 @@
+"""Test-side helpers for the autopilot node: a "ground station" node and process launchers.
+
+No mocks of ROS: :class:`Ground` is an ordinary rclpy node in the test process that records what
+the autopilot and the simulator publish, publishes states/demands itself and calls their
+services. Every wait spins the executor until a condition holds or a timeout expires; nothing
+sleeps a fixed time.
+"""
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rosutil
+from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
+from lander_interfaces.srv import Reset, SwitchController
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import SetParametersAtomically
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+#: Generous: discovery and process start-up (imports of rclpy + python-control) on a loaded 2-core machine.
+START_TIMEOUT = 30.0
+#: One request/answer over the middleware.
+REPLY_TIMEOUT = 10.0
+
+
+def ros_args(params: dict[str, object]) -> list[str]:
+    """``--ros-args -p k:=v ...`` for a child node."""
+    args = ["--ros-args"]
+    for k, v in params.items():
+        if isinstance(v, bool):
+            lit = "true" if v else "false"
+        elif isinstance(v, str):
+            lit = v if v else "''"
+        else:
+            lit = repr(v)
+        args += ["-p", f"{k}:={lit}"]
+    return args
+
+
+def start_autopilot(spawn_python: Callable[..., rosutil.ChildProcess], **params: object) -> rosutil.ChildProcess:
+    return spawn_python(["-m", "lander_autopilot.node", *ros_args(params)], name="autopilot")
+
+
+def start_sim(spawn_python: Callable[..., rosutil.ChildProcess], **params: object) -> rosutil.ChildProcess:
+    return spawn_python(["-m", "lander_sim.node", *ros_args(params)], name="sim")
+
+
+class Ground:
+    """Records /lander/state, /lander/throttle, /autopilot/status, /lander/events; talks to both nodes."""
+
+    def __init__(self, context: Any, name: str = "ground") -> None:
+        self.node = Node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        n = self.node
+        self.states: list[LanderState] = []
+        self.throttles: list[ThrottleCommand] = []
+        self.statuses: list[AutopilotStatus] = []
+        self.events: list[FlightEvent] = []
+        n.create_subscription(LanderState, "/lander/state", self.states.append, 10_000)
+        n.create_subscription(ThrottleCommand, "/lander/throttle", self.throttles.append, 10_000)
+        n.create_subscription(AutopilotStatus, "/autopilot/status", self.statuses.append, 10_000)
+        n.create_subscription(FlightEvent, "/lander/events", self.events.append, 10_000)
+        self.pub_state = n.create_publisher(LanderState, "/lander/state", 10)
+        self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", 10)
+        self.switch = n.create_client(SwitchController, "/autopilot/switch_controller")
+        self.set_params = n.create_client(SetParametersAtomically, "/autopilot/set_parameters_atomically")
+        self.reset_sim = n.create_client(Reset, "/lander/reset")
+        self.pause_sim = n.create_client(Trigger, "/lander/pause")
+        self.resume_sim = n.create_client(Trigger, "/lander/resume")
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT, what: str = "condition") -> None:
+        rosutil.wait_for(predicate, timeout, self.executor, what)
+
+    def call(self, client: Any, request: Any, timeout: float = REPLY_TIMEOUT) -> Any:
+        self.wait_for(client.service_is_ready, START_TIMEOUT, f"service {client.srv_name}")
+        future = client.call_async(request)
+        self.wait_for(future.done, timeout, f"answer of {client.srv_name}")
+        return future.result()
+
+    def switch_controller(self, controller: str, parameters_yaml: str = "") -> SwitchController.Response:
+        return self.call(self.switch, SwitchController.Request(controller=controller, parameters_yaml=parameters_yaml))
+
+    def set_autopilot_parameters(self, **values: object):
+        """Set parameters of /autopilot atomically through its parameter service; return the SetParametersResult."""
+        msgs: list[ParameterMsg] = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+        return self.call(self.set_params, SetParametersAtomically.Request(parameters=msgs)).result
+
+    def publish_demand(self, value: float) -> None:
+        self.pub_demand.publish(Float64(data=float(value)))
+
+    def answer_to(self, sequence: int, after: int = 0) -> ThrottleCommand | None:
+        """The autopilot's answer to state ``sequence`` among throttles recorded from index ``after``."""
+        for cmd in self.throttles[after:]:
+            if cmd.state_sequence == sequence:
+                return cmd
+        return None
+
+    def events_of(self, kind: int) -> list[FlightEvent]:
+        return [e for e in self.events if e.kind == kind]
+
+
+def wait_for_graph(ground: Ground, subscribers: dict[str, int], publishers: dict[str, int]) -> None:
+    """Wait until the graph shows at least the given numbers of subscribers / publishers per topic."""
+    n = ground.node
+
+    def ready() -> bool:
+        return all(n.count_subscribers(t) >= k for t, k in subscribers.items()) and all(
+            n.count_publishers(t) >= k for t, k in publishers.items()
+        )
+
+    ground.wait_for(ready, START_TIMEOUT, f"discovery of {subscribers} / {publishers}")
+
+
+def seconds(stamp: Any) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def check_alive(*children: rosutil.ChildProcess) -> None:
+    for c in children:
+        if c.returncode is not None:
+            sys.stderr.write(c.output())
+            raise AssertionError(f"{c.name} exited with {c.returncode}")
+
+
+def as_list(values: Sequence[float]) -> list[float]:
+    return [float(x) for x in values]

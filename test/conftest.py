@@ -1,0 +1,127 @@
+"""Project-wide test set-up: middleware isolation, ROS fixtures, the ``slow`` marker.
+
+At import (before any test creates a ROS context) this run gets its own ROS_DOMAIN_ID in 1..101
+and localhost-only discovery, so parallel runs and other engineers' nodes never cross-talk; child
+processes inherit both through the environment. At session end Fast DDS shared-memory files of
+dead processes are removed.
+
+Fixtures for other tests:
+  ros_context   a fresh rclpy Context, initialised for the test and shut down after it
+  ros_node      (node, executor) in that context; ``ros_node.wait_for(pred, timeout, what)``
+  spawn_python  factory starting a Python child process (a node) with this env, stopped at teardown
+Helpers: ``import rosutil`` (wait_for, ChildProcess, clean_stale_fastdds_shm).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence
+
+import pytest
+
+import rosutil
+
+ROS_DOMAIN_ID = rosutil.isolate_middleware()
+REPO_ROOT = Path(__file__).resolve().parent.parent
+TEST_DIR = Path(__file__).resolve().parent
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--runslow", action="store_true", default=False, help="also run tests marked slow")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "slow: long test, skipped unless --runslow is given")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if config.getoption("--runslow"):
+        return
+    skip = pytest.mark.skip(reason="slow: run with --runslow")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return (f"ROS_DOMAIN_ID={ROS_DOMAIN_ID} "
+            f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']}")
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    rosutil.clean_stale_fastdds_shm()
+
+
+@pytest.fixture
+def ros_context() -> Iterator[Any]:
+    """A private rclpy Context (not the global one): tests cannot leak nodes into each other."""
+    import rclpy
+    from rclpy.context import Context
+
+    ctx = Context()
+    rclpy.init(context=ctx)
+    try:
+        yield ctx
+    finally:
+        if ctx.ok():
+            rclpy.shutdown(context=ctx)
+
+
+@dataclass
+class RosNode:
+    node: Any
+    executor: Any
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = 10.0, what: str = "condition") -> None:
+        rosutil.wait_for(predicate, timeout, self.executor, what)
+
+
+@pytest.fixture
+def ros_node(ros_context: Any, request: pytest.FixtureRequest) -> Iterator[RosNode]:
+    """A node named after the test, with a single-threaded executor, in ``ros_context``."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    name = "test_" + "".join(c if c.isalnum() else "_" for c in request.node.name)[:60]
+    node = Node(name, context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    try:
+        yield RosNode(node, executor)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
+@pytest.fixture
+def spawn_python(request: pytest.FixtureRequest) -> Iterator[Callable[..., rosutil.ChildProcess]]:
+    """``spawn_python(args, name=...)`` starts ``python args...`` with this env; test/ is on its
+    PYTHONPATH so children can ``import rosutil`` and test helper modules. All are stopped at
+    teardown; if the test failed, their output is printed."""
+    children: list[rosutil.ChildProcess] = []
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(TEST_DIR), *filter(None, [env.get("PYTHONPATH")])])
+
+    def spawn(args: Sequence[str], name: str = "child") -> rosutil.ChildProcess:
+        child = rosutil.ChildProcess(args, env=env, cwd=REPO_ROOT, name=name)
+        children.append(child)
+        return child
+
+    yield spawn
+    failed = getattr(request.node, "rep_call", None)
+    for child in children:
+        child.stop()
+        if failed is not None and failed.failed:
+            sys.stderr.write(f"--- output of {child.name} ---\n{child.output()}\n")
+        child.close()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    """Keep each phase's report on the item (spawn_python prints children's logs on failure)."""
+    report = yield
+    setattr(item, f"rep_{report.when}", report)
+    return report

@@ -1,0 +1,101 @@
+"""Pure tests of the node's helpers (no middleware): conventions, parameters, pacing, labels."""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from lander_sim.physics import rotation
+from lander_sim.ros import convert
+from lander_sim.ros.config import PARAMETERS, ConfigError, check_parameter, check_params_file
+from lander_sim.ros.pacing import Pacer, steps_per_tick
+
+REPO_CONFIG = __import__("pathlib").Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
+
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3), st.tuples(unit, unit, unit))
+def test_ros_orientation_rotates_body_vectors_into_the_world_like_the_core(q, v_B):
+    # Independent check of the convention: scipy's active rotation from ROS (x, y, z, w) must map a
+    # body vector exactly where the core's R(q)^T (eq 13 transposed) puts it; 1e-12 is rounding.
+    q = rotation.quat_normalise(np.array(q))
+    ros = Rotation.from_quat(convert.ros_orientation(q))
+    assert np.allclose(ros.apply(v_B), rotation.body_to_world(q, np.array(v_B)), atol=1e-12)
+
+
+def test_odometry_twist_is_in_the_body_frame():
+    # A lander yawed 90 deg about world z moving along world +x moves along body -y: REP 105 twist.
+    q = rotation.axis_angle_to_quat(np.array([0.0, 0.0, 1.0]), math.pi / 2)
+    snap = SimpleNamespace(t=1.5, r_W=np.zeros(3), v_W=np.array([2.0, 0.0, 0.0]), q=q, omega_B=np.array([0.1, 0.2, 0.3]))
+    v3 = lambda: SimpleNamespace(x=0.0, y=0.0, z=0.0)  # noqa: E731
+    msg = SimpleNamespace(
+        header=SimpleNamespace(stamp=SimpleNamespace(sec=0, nanosec=0)),
+        pose=SimpleNamespace(pose=SimpleNamespace(position=v3(), orientation=SimpleNamespace(x=0, y=0, z=0, w=0))),
+        twist=SimpleNamespace(twist=SimpleNamespace(linear=v3(), angular=v3())),
+    )
+    convert.fill_odometry(msg, snap)
+    lin = msg.twist.twist.linear
+    assert (lin.x, lin.y, lin.z) == pytest.approx((0.0, -2.0, 0.0), abs=1e-12)
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1, 500_000_000)
+
+
+@pytest.mark.parametrize("t, sec, ns", [(0.0, 0, 0), (0.02, 0, 20_000_000), (100 * 0.01, 1, 0), (123.456789, 123, 456_789_000)])
+def test_stamps_are_sim_time_rounded_to_the_nanosecond(t, sec, ns):
+    stamp = SimpleNamespace(sec=-1, nanosec=-1)
+    convert.fill_stamp(stamp, t)
+    assert (stamp.sec, stamp.nanosec) == (sec, ns)
+
+
+@pytest.mark.parametrize(
+    "values, kind",
+    [([0.1, 0.2], "wrong_length"), ([math.nan] * 4, "nan"), ([0, 0, -math.inf, 0], "inf"), ([0, 1.01, 0, 0], "out_of_range")],
+)
+def test_throttle_rejections_are_labelled_by_kind(values, kind):
+    assert convert.throttle_fault(values, 4) == kind
+
+
+def test_default_parameters_are_valid_and_config_file_matches_them():
+    for spec in PARAMETERS:
+        assert check_parameter(spec.name, spec.default) is None, spec.name
+    params = check_params_file(REPO_CONFIG)
+    assert {k: params[k] for k in params} == {s.name: s.default for s in PARAMETERS}
+
+
+@pytest.mark.parametrize(
+    "name, value, words",
+    [("speed", -1.0, "speed"), ("publish_rate", 0.0, "publish_rate"), ("stabiliser", "maybe", "scene, on, off"),
+     ("world_frame", "/mars", "world_frame"), ("seed", -3, "seed"), ("typo_key", 1, "unknown parameter 'typo_key'")],
+)
+def test_bad_parameters_are_refused_naming_the_key(name, value, words):
+    reason = check_parameter(name, value)
+    assert reason is not None and words in reason
+
+
+def test_params_file_with_a_misspelt_key_fails_naming_it(tmp_path):
+    f = tmp_path / "p.yaml"
+    f.write_text("lander_sim:\n  ros__parameters:\n    sped: 2.0\n")
+    with pytest.raises(ConfigError, match="'sped'"):
+        check_params_file(f)
+
+
+def test_steps_per_tick_makes_the_control_period_a_whole_number_of_steps():
+    assert steps_per_tick(0.001, 50.0) == 20
+    assert steps_per_tick(0.1, 50.0) == 1  # a step longer than the period: one step per tick
+
+
+def test_pacer_schedules_ticks_at_the_real_time_factor():
+    now = [0.0]
+    p = Pacer(speed=10.0, period=0.02, clock=lambda: now[0])
+    assert p.wait_time(0.02) == pytest.approx(0.002)  # first tick one period (0.02 s sim / 10) from now
+    now[0] = 0.002
+    assert p.wait_time(0.04) == pytest.approx(0.002)  # absolute schedule: tick k at k * 0.002 s
+    now[0] = 1.0  # far behind (> max_lag): re-anchor instead of racing
+    assert p.wait_time(0.06) == 0.0 and p.overruns == 1
+    assert Pacer(speed=0.0, period=0.02, clock=lambda: 0.0).wait_time(5.0) == 0.0

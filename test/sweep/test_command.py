@@ -1,0 +1,66 @@
+"""`lander sweep`: bad specs name the key; a tiny sweep writes its table, summary and plots;
+`--replay` reprints the sweep's row for that flight."""
+from __future__ import annotations
+
+import csv
+import json
+
+import yaml
+
+from lander_tools.cli import main
+
+from .conftest import SMALL
+
+
+def _write(tmp_path, data, name="spec.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data))
+    return str(p)
+
+
+def test_bad_spec_exits_2_naming_the_key(tmp_path, capsys):
+    cases = {
+        "flights": ({**SMALL, "flights": -3}, "flights: must be >= 1, got -3"),
+        "unknown": ({**SMALL, "wind": 3}, "wind: unknown key"),
+        "std": ({**SMALL, "dispersions": {"wind_mean": {"normal": {"mean": 0, "std": -1}}}},
+                "dispersions.wind_mean.normal.std"),
+        "minmax": ({**SMALL, "dispersions": {"initial_altitude": {"uniform": {"min": 3, "max": 1}}}},
+                   "dispersions.initial_altitude.uniform.min"),
+        "controller": ({**SMALL, "controllers": ["no-such-law"]}, "unknown controller 'no-such-law'"),
+    }
+    for name, (data, needle) in cases.items():
+        assert main(["sweep", _write(tmp_path, data, f"{name}.yaml")]) == 2, name
+        err = capsys.readouterr().err
+        assert needle in err and f"{name}.yaml" in err or name == "controller", err
+
+
+def test_flights_override_is_checked(tmp_path, capsys):
+    assert main(["sweep", _write(tmp_path, SMALL), "--flights", "0"]) == 2
+    assert "--flights: must be >= 1" in capsys.readouterr().err
+
+
+def test_tiny_sweep_writes_table_summary_and_plots_and_replay_matches(tmp_path, capsys):
+    spec = _write(tmp_path, {**SMALL, "flights": 3, "end": {"duration": 4.0, "demand_step_time": 1.0, "hover_window": 1.0}})
+    out = tmp_path / "out"
+    assert main(["sweep", spec, "--workers", "1", "--out", str(out), "--progress", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    s = printed["controllers"][0]
+    assert s["flights"] == 3 and 0.0 <= s["success_rate"]["low"] <= s["success_rate"]["estimate"] <= s["success_rate"]["high"] <= 1.0
+    with open(out / "flights.csv") as f:
+        table = list(csv.DictReader(f))
+    assert [int(r["index"]) for r in table] == [0, 1, 2]
+    assert json.loads((out / "summary.json").read_text())["flights"] == 3
+    for png in ("histograms.png", "scatter.png", "worst.png"):
+        assert (out / "plots" / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    assert main(["sweep", spec, "--replay", "2", "--json"]) == 0
+    replay = json.loads(capsys.readouterr().out)[0]
+    # CSV floats are written with repr, so the replayed flight must print the very same numbers.
+    for key in ("hover_error", "fuel_used", "max_tilt", "tilt", "wind_gust"):
+        assert repr(replay[key]) == table[2][key], key
+
+
+def test_through_ros_says_it_is_not_available_yet(tmp_path, capsys):
+    spec = _write(tmp_path, {**SMALL, "flights": 1, "end": {"duration": 1.0, "hover_window": 0.5}})
+    assert main(["sweep", spec, "--workers", "1", "--out", str(tmp_path / "o"), "--no-plots", "--through-ros", "2"]) == 3
+    assert "not available yet" in capsys.readouterr().out

@@ -343,6 +343,7 @@ class _Supervisor:
         self.t = 0.0
         self.last_state_wall = time.monotonic()
         self.end: str | None = None
+        self.end_t: float | None = None  #: sim time of the state that ended the flight
         self.touchdown: float | None = None
         self.pending = sorted(plan.timeline, key=lambda a: a.t)
         self.held_throttle: Action | None = None
@@ -373,6 +374,8 @@ class _Supervisor:
             elif self.plan.duration is not None and self.t >= self.plan.duration - 1e-9:
                 self.end = "time-limit"
         if self.end is not None:
+            if self.end_t is None:
+                self.end_t = self.t
             return  # no more actions or answers: in lockstep the sim now waits to be paused
         self._apply_due()
         held = self.held_throttle
@@ -564,7 +567,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         # comes, so it cannot run on (a pause request can wait behind a busy lockstep loop).
         _stop_all(procs)
         code = EXIT_CRASHED if sup.end == "crashed" else EXIT_OK
-        result = FlightResult(sup.end, code, sup.t, sup.states)
+        result = FlightResult(sup.end, code, sup.end_t if sup.end_t is not None else sup.t, sup.states)
     except _Interrupted:
         result = FlightResult("interrupted", EXIT_INTERRUPTED, sup.t if sup else 0.0, sup.states if sup else 0,
                               f"stopped by {stop_reason[0] if stop_reason else 'signal'}")
@@ -580,7 +583,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         if sup is not None and sup.recorder is not None:
             if result is not None:
                 # The flight's end, so analysis can ignore states the sim produced while stopping.
-                sup.recorder.writer.set_custom_data("end_time", repr(sup.t))
+                sup.recorder.writer.set_custom_data("end_time", repr(sup.end_t if sup.end_t is not None else sup.t))
                 sup.recorder.writer.set_custom_data("outcome", result.outcome)
             counts = sup.recorder.close()
             if result is not None:

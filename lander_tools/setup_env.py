@@ -23,6 +23,7 @@ LD_LIBRARY_PATH, so that users never need to know about them.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
 import shlex
@@ -133,7 +134,7 @@ def step_requirements() -> None:
     if not (VENV / "bin" / "python").exists():
         _say("creating .venv")
         _run([sys.executable, "-m", "venv", str(VENV)], ROOT / "build" / "log" / "venv.log")
-    _say("installing pinned requirements (first time: about a minute)")
+    _say("installing pinned requirements (about a minute on a new machine)")
     _run([_venv_python(), "-m", "pip", "install", "--disable-pip-version-check", "-q",
           "-r", str(ROOT / "requirements.txt")], ROOT / "build" / "log" / "pip.log")
     fix_wheel_cmake_paths()
@@ -229,9 +230,24 @@ ACTIONS = {"requirements": step_requirements, "interfaces": step_interfaces, "pa
 
 
 def ensure() -> int:
-    stale = out_of_date()
-    if not stale and ENV_FILE.exists():
+    if not out_of_date() and ENV_FILE.exists():
         return 0
+    # Several ./dev may start at once (several terminals, engineers sharing a tree): one sets up,
+    # the others wait for it and then find everything current.
+    with open(_lock_path(), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes (or the process dies)
+        stale = out_of_date()
+        if not stale and ENV_FILE.exists():
+            return 0
+        return _do_steps(stale)
+
+
+def _lock_path() -> Path:
+    (ROOT / "build").mkdir(exist_ok=True)
+    return ROOT / "build" / ".setup.lock"
+
+
+def _do_steps(stale: list[str]) -> int:
     t0 = time.monotonic()
     wanted = _wanted_hashes()
     for step in stale:

@@ -119,6 +119,7 @@ def test_one_canted_thruster_spins_the_lander_the_way_its_torque_points(probe, s
 def test_a_sim_time_node_follows_the_simulation_clock_exactly(probe, scenes, speed, wall_window):
     _load(probe, scenes["vertical"])
     probe.set_params(speed=speed)
+    d0 = probe.diag_after(len(probe.diagnostics))
     first = len(probe.states)
     probe.call("resume")
     probe.wait_for(lambda: len(probe.states) > first + 2, 10.0, "states after resume")
@@ -140,12 +141,21 @@ def test_a_sim_time_node_follows_the_simulation_clock_exactly(probe, scenes, spe
     assert all(b >= a for a, b in zip(seen, seen[1:]))
     # Rate: the schedule is absolute, so sim time tracks speed x wall time to within the two
     # control periods at the window's ends (0.02 s each) plus delivery/scheduling latency, taken
-    # as 50 ms of wall time on this loaded 2-core machine.
+    # as 50 ms of wall time. It must never run ahead; it may fall behind only on a machine too
+    # loaded to keep up, and then the node must say so (pacer_overruns in its diagnostics).
     window = list(probe.states)[n0:n1]
     d_sim = (state_ns(window[-1]) - state_ns(window[0])) * 1e-9
     d_wall = w1 - w0
-    period = 1.0 / 50.0
-    assert abs(d_sim - speed * d_wall) <= 2 * period + speed * 0.05, (d_sim, speed * d_wall)
+    tol = 2 * (1.0 / 50.0) + speed * 0.05
+    assert d_sim <= speed * d_wall + tol, (d_sim, speed * d_wall)
+    d1 = probe.diag_after(len(probe.diagnostics))
+    overruns = int(d1["pacer_overruns"]) - int(d0["pacer_overruns"])
+    if speed <= 1.0:
+        assert overruns == 0, "real time must be kept on any machine"
+    if overruns == 0:
+        assert d_sim >= speed * d_wall - tol, (d_sim, speed * d_wall)
+    else:
+        print(f"speed {speed}: fell behind ({d_sim:.2f} s sim in {d_wall:.2f} s wall) and reported {overruns} overruns")
 
 
 def test_step_advances_exactly_n_dt_and_reset_restores_the_initial_state_bit_for_bit(probe, scenes):

@@ -23,6 +23,8 @@ setup(
         (f"share/{PACKAGE}/scenes", glob("lander_sim/scenes/*.yaml")),
         (f"share/{PACKAGE}/bench", glob("bench/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/flights", glob("flights/*.yaml")),
+        (f"share/{PACKAGE}/sweeps", glob("sweeps/*.yaml")),
     ],
     zip_safe=False,
     python_requires=">=3.11",

@@ -19,12 +19,10 @@ translated to and from the core (see docs/sim_node.md).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import time
 
-import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3Stamped

@@ -64,6 +64,11 @@ class HealthReport:
         return out
 
 
+def _worst(current: float, new: float) -> float:
+    """``max`` that lets a NaN (a run that blew up) show as ``inf`` instead of hiding it."""
+    return max(current, new) if new == new else math.inf
+
+
 def angular_momentum_W(y: np.ndarray, inertia_B: np.ndarray) -> np.ndarray:
     """World-frame angular momentum ``R(q)^T I omega_B`` [kg m^2/s] of a quaternion-mode state."""
     return rotation.body_to_world(y[ATT], np.asarray(inertia_B) * y[OMEGA_B])
@@ -92,19 +97,19 @@ class HealthMonitor:
         """Record one state; the first call fixes the reference values ``E0``, ``L_W0``."""
         if self._quaternion:
             q = y[ATT]
-            self._q_err = max(self._q_err, abs(math.sqrt(float(q @ q)) - 1.0))
+            self._q_err = _worst(self._q_err, abs(math.sqrt(float(q @ q)) - 1.0))
         if self._energy is not None:
             e = float(self._energy(y))
             if self._n == 0:
                 self._e0 = e
             else:
-                self._e_err = max(self._e_err, abs(e - self._e0) / max(abs(self._e0), 1e-300))
+                self._e_err = _worst(self._e_err, abs(e - self._e0) / max(abs(self._e0), 1e-300))
         if self._momentum is not None:
             L = np.asarray(self._momentum(y), dtype=float)
             if self._n == 0:
                 self._L0 = L.copy()
             else:
-                self._L_err = max(self._L_err, float(np.linalg.norm(L - self._L0)) / max(float(np.linalg.norm(self._L0)), 1e-300))
+                self._L_err = _worst(self._L_err, float(np.linalg.norm(L - self._L0)) / max(float(np.linalg.norm(self._L0)), 1e-300))
         self._n += 1
 
     def report(self, integrator: object | None = None) -> HealthReport:

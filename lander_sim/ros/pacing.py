@@ -28,7 +28,7 @@ class Pacer:
     letting it race to catch up, which would run far above the requested speed.
     """
 
-    def __init__(self, speed: float, period: float, max_lag: float = 0.25, clock=time.monotonic) -> None:
+    def __init__(self, speed: float, period: float, max_lag: float = 0.1, clock=time.monotonic) -> None:
         self._clock = clock
         self.max_lag = max_lag
         self.speed = speed

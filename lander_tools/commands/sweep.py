@@ -133,21 +133,28 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _replay_recorded(spec: Any, args: argparse.Namespace) -> int:
-    """Fly one dispersed case through the ROS nodes and record it: needs the launcher and a way to
-    hand the nodes the case (dispersed vehicle/initial state, wind, failure, demand step)."""
+    """Fly one case through the ROS nodes (the ``lander fly`` path, lockstep, max speed) into a bag."""
+    import tempfile
+    from pathlib import Path
+
     try:
-        from lander_tools import launcher  # noqa: F401 - written concurrently by the launcher engineer
+        from lander_tools import launcher
     except ImportError:
-        return _fail(
-            "--record is not available yet: it flies the case through `lander fly` (lander_tools.launcher), "
-            "which this installation does not have. --replay INDEX alone re-flies it core-only.",
-            EXIT_NOT_AVAILABLE,
-        )
-    return _fail(
-        "--record is not available yet: the launcher cannot yet be handed a dispersed case "
-        "(see docs/sweeps.md, 'Not yet'). --replay INDEX alone re-flies it core-only.",
-        EXIT_NOT_AVAILABLE,
-    )
+        return _fail("--record: lander_tools.launcher (the `lander fly` path) is not installed", EXIT_NOT_AVAILABLE)
+    from lander_tools.sweep.ros_path import plan_for_case
+
+    code = 0
+    with tempfile.TemporaryDirectory(prefix="lander-sweep-") as tmp:
+        for ci, choice in enumerate(spec.controllers):
+            bag = Path(args.record) if len(spec.controllers) == 1 else Path(f"{args.record}-{choice.label}")
+            plan = plan_for_case(spec, ci, args.replay, Path(tmp), bag)  # NotRepresentable is a ValueError
+            try:
+                result = launcher.fly(plan)
+            except ImportError as exc:
+                return _fail(f"--record needs the ROS environment (run it with ./dev sweep ...): {exc}", EXIT_NOT_AVAILABLE)
+            print(launcher.summary(result))
+            code = max(code, result.exit_code)
+    return code
 
 
 def _through_ros(n: int) -> str:

@@ -124,6 +124,27 @@ def base_demand_altitude(scene: Any) -> float:
     return Demand().altitude
 
 
+def wind_schedule(scene: Any, case: FlightCase, tau: float, period: float, n: int) -> np.ndarray | None:
+    """World-frame wind [m/s] for each of ``n`` control periods, or None when there is none to set.
+
+    Scene wind + the case's mean wind + gusts: a first-order Gauss-Markov process per world axis,
+    discretised exactly over one period, ``g_{k+1} = a g_k + sigma sqrt(1 - a^2) w_k`` with
+    ``a = exp(-period / tau)``, started in its stationary distribution (std ``sigma``).
+    """
+    base = np.asarray(scene.wind_W, dtype=float) + np.asarray(case.wind_mean_W)
+    if not case.wind_gust:
+        return None if not np.any(np.asarray(case.wind_mean_W)) else np.tile(base, (max(n, 1), 1))
+    rng = gust_stream(case)
+    a = math.exp(-period / tau)
+    scale = case.wind_gust * math.sqrt(1.0 - a * a)
+    out = np.empty((max(n, 1), 3))
+    g = case.wind_gust * rng.standard_normal(3)
+    for k in range(out.shape[0]):
+        out[k] = base + g
+        g = a * g + scale * rng.standard_normal(3)
+    return out
+
+
 def _steps_per_control(spec: SweepSpec, dt: float) -> int:
     if spec.control_rate is None:
         return 1
@@ -162,14 +183,7 @@ def fly_case(spec: SweepSpec, controller_index: int, index: int, *, record: bool
     demand_after = Demand(altitude=max(0.0, h0 + case.demand_step)) if case.demand_step else demand_before
     t_change = end.demand_step_time if case.demand_step else 0.0
 
-    # Gusts: first-order Gauss-Markov per world axis, exact discretisation over one control period,
-    # g_{k+1} = a g_k + sigma sqrt(1 - a^2) w_k, stationary std sigma.
-    wind_base = np.asarray(scene.wind_W, dtype=float) + np.asarray(case.wind_mean_W)
-    gust_rng = gust_stream(case)
-    a = math.exp(-period / end.gust_time_constant)
-    gust_scale = case.wind_gust * math.sqrt(1.0 - a * a)
-    gust = case.wind_gust * gust_rng.standard_normal(3)
-    use_wind = bool(np.any(wind_base) or case.wind_gust)
+    winds = wind_schedule(scene, case, end.gust_time_constant, period, n_ctrl)
 
     fuel0 = float(sim.state().fuel)
     ts, errs, tilts, rates = [], [], [], []
@@ -211,9 +225,8 @@ def fly_case(spec: SweepSpec, controller_index: int, index: int, *, record: bool
             demands.append(demand.altitude)
             alts.append(h)
             thr_log.append(np.array(thr, dtype=float))
-        if use_wind:
-            sim.set_wind(wind_base + gust)
-            gust = a * gust + gust_scale * gust_rng.standard_normal(3)
+        if winds is not None:
+            sim.set_wind(winds[k])
         sim.set_throttles(thr)
         v_before = st.v_W
         sim.step(n_sub)

@@ -62,10 +62,11 @@ class Ground:
         self.throttles: list[ThrottleCommand] = []
         self.statuses: list[AutopilotStatus] = []
         self.events: list[FlightEvent] = []
-        n.create_subscription(LanderState, "/lander/state", self.states.append, 10_000)
-        n.create_subscription(ThrottleCommand, "/lander/throttle", self.throttles.append, 10_000)
-        n.create_subscription(AutopilotStatus, "/autopilot/status", self.statuses.append, 10_000)
-        n.create_subscription(FlightEvent, "/lander/events", self.events.append, 10_000)
+        self.received = 0  # messages taken by the callbacks below (drain() watches it)
+        n.create_subscription(LanderState, "/lander/state", self._recorder(self.states), 10_000)
+        n.create_subscription(ThrottleCommand, "/lander/throttle", self._recorder(self.throttles), 10_000)
+        n.create_subscription(AutopilotStatus, "/autopilot/status", self._recorder(self.statuses), 10_000)
+        n.create_subscription(FlightEvent, "/lander/events", self._recorder(self.events), 10_000)
         self.pub_state = n.create_publisher(LanderState, "/lander/state", 10)
         self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", 10)
         self.switch = n.create_client(SwitchController, "/autopilot/switch_controller")
@@ -73,6 +74,31 @@ class Ground:
         self.reset_sim = n.create_client(Reset, "/lander/reset")
         self.pause_sim = n.create_client(Trigger, "/lander/pause")
         self.resume_sim = n.create_client(Trigger, "/lander/resume")
+
+    def _recorder(self, store: list) -> Callable[[Any], None]:
+        def record(msg: Any) -> None:
+            store.append(msg)
+            self.received += 1
+
+        return record
+
+    def drain(self, timeout: float = REPLY_TIMEOUT) -> None:
+        """Take every message already queued: spin until a spin takes none (publishers quiet).
+
+        The ground runs one callback per spin while the simulator may publish a thousand
+        messages per second, so its records lag; call this once the publishers are quiet
+        (simulation paused) before reading them as complete.
+        """
+        idle = 0
+
+        def quiet() -> bool:
+            nonlocal idle
+            before = self.received
+            self.executor.spin_once(timeout_sec=0.05)
+            idle = idle + 1 if self.received == before else 0
+            return idle >= 2
+
+        rosutil.wait_for(quiet, timeout, None, "queued messages drained", poll=0.0)
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -96,6 +96,6 @@ def test_pacer_schedules_ticks_at_the_real_time_factor():
     assert p.wait_time(0.02) == pytest.approx(0.002)  # first tick one period (0.02 s sim / 10) from now
     now[0] = 0.002
     assert p.wait_time(0.04) == pytest.approx(0.002)  # absolute schedule: tick k at k * 0.002 s
-    now[0] = 1.0  # far behind (> max_lag): re-anchor instead of racing
+    now[0] = 1.0  # far behind (> max_lag = 0.1 s): re-anchor instead of racing
     assert p.wait_time(0.06) == 0.0 and p.overruns == 1
     assert Pacer(speed=0.0, period=0.02, clock=lambda: 0.0).wait_time(5.0) == 0.0

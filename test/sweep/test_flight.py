@@ -94,3 +94,19 @@ def test_comparison_flies_both_controllers_on_the_same_case(small_spec):
         assert repr(a[key]) == repr(b[key])
     assert (a["controller"], b["controller"]) == ("combined", "aggressive")
     assert a["fuel_used"] != b["fuel_used"]  # different laws, different flights
+
+
+def test_gusts_have_the_specified_stationary_std():
+    from lander_tools.sweep.flight import wind_schedule
+
+    scene = nominal_scene(parse_spec(SMALL))
+    case = FlightCase(index=3, seed=9, wind_gust=0.8, wind_mean_W=(1.0, 0.0, -2.0))
+    w = wind_schedule(scene, case, tau=2.0, period=0.1, n=20000)
+    g = w - (np.asarray(scene.wind_W) + np.asarray(case.wind_mean_W))
+    # 20000 samples 0.1 s apart with correlation time 2 s are worth ~N/(2 tau/period) = 500
+    # independent ones: the sample std has relative std 1/sqrt(2 * 500) = 3.2 %, and 3 axes
+    # pooled shrink it further; 4 of those (13 %) is a generous but not a loose bound.
+    assert np.allclose(g.std(axis=0), 0.8, rtol=0.13)
+    # Lag of one correlation time (20 periods): autocorrelation exp(-1) for a Gauss-Markov process.
+    rho = np.mean([np.corrcoef(g[:-20, i], g[20:, i])[0, 1] for i in range(3)])
+    assert rho == pytest.approx(math.exp(-1.0), abs=0.1)  # ~2.5 std of the estimate with N_eff = 1500

@@ -1,0 +1,79 @@
+"""Synthetic flight bags written with the rosbags Writer (no rclpy): closed-form trajectories
+whose metrics are known from theory, for testing bag reading and analysis on their own."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from lander_sim.physics.constants import MARS_RADIUS
+from lander_tools.bagio import lander_typestore
+
+STATE = "lander_interfaces/msg/LanderState"
+
+
+def write_flight_bag(
+    path: Path,
+    t: np.ndarray,
+    altitude: np.ndarray,
+    climb_rate: np.ndarray,
+    demand: list[tuple[float, float]] = (),
+    omega_B: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+    throttles: np.ndarray | None = None,
+    fuel: np.ndarray | None = None,
+    storage: str = "mcap",
+    meta: dict[str, str] | None = None,
+) -> None:
+    """A bag with /clock, /lander/state (upright lander on the -y axis, as scene 'hover') and
+    /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = lander_typestore()
+    T = ts.types
+    n = len(t)
+    omega_B = np.zeros((n, 3)) if omega_B is None else omega_B
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)) if q is None else q
+    throttles = np.full((n, 4), 0.5) if throttles is None else throttles
+    fuel = np.full(n, 100.0) if fuel is None else fuel
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    offset = 10**9
+
+    def stamp(x: float):
+        sec = int(np.floor(x))
+        return T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((x - sec) * 1e9)))
+
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        for k, v in (meta or {}).items():
+            w.set_custom_data(k, v)
+        c_clock = w.add_connection("/clock", "rosgraph_msgs/msg/Clock", typestore=ts)
+        c_state = w.add_connection("/lander/state", STATE, typestore=ts)
+        c_dem = w.add_connection("/lander/demand_altitude", "std_msgs/msg/Float64", typestore=ts)
+        events = sorted(demand)
+        for i in range(n):
+            tb = offset + int(round(t[i] * 1e9))
+            while events and events[0][0] <= t[i] + 1e-12:
+                td, hd = events.pop(0)
+                w.write(c_dem, offset + int(round(td * 1e9)), ts.serialize_cdr(T["std_msgs/msg/Float64"](data=hd), "std_msgs/msg/Float64"))
+            w.write(c_clock, tb, ts.serialize_cdr(T["rosgraph_msgs/msg/Clock"](clock=stamp(t[i])), "rosgraph_msgs/msg/Clock"))
+            r = MARS_RADIUS + altitude[i]
+            msg = T[STATE](
+                header=T["std_msgs/msg/Header"](stamp=stamp(t[i]), frame_id="mars"),
+                sequence=i + 1,
+                position=T["geometry_msgs/msg/Point"](x=0.0, y=-r, z=0.0),
+                velocity=T["geometry_msgs/msg/Vector3"](x=0.0, y=-climb_rate[i], z=0.0),
+                orientation=T["geometry_msgs/msg/Quaternion"](x=q[i, 1], y=q[i, 2], z=q[i, 3], w=q[i, 0]),
+                euler_zxz=np.array([0.0, np.pi / 2, 0.0]),
+                gimbal_lock=False,
+                angular_velocity=T["geometry_msgs/msg/Vector3"](x=omega_B[i, 0], y=omega_B[i, 1], z=omega_B[i, 2]),
+                altitude=float(altitude[i]),
+                climb_rate=float(climb_rate[i]),
+                ground_speed=0.0,
+                mass=100.0 + float(fuel[i]),
+                fuel_mass=float(fuel[i]),
+                throttles=np.asarray(throttles[i], dtype=float),
+                phase=0,
+                parachute_deployed=False,
+                stabiliser_on=False,
+            )
+            w.write(c_state, tb, ts.serialize_cdr(msg, STATE))

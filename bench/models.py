@@ -69,18 +69,22 @@ def one_by_one(quick: bool) -> list[dict]:
         ("+ parachute (deployed)", [InverseSquareGravity(), SphereDrag(), chute, Thrusters(veh)], True),
         ("mesh drag (12x24 panels) instead of sphere", [InverseSquareGravity(), MeshDrag(c_B, n_B, areas), Thrusters(veh)], True),
     ]
-    rows = []
+    steppers = []
     for label, models, atmo in stages:
         dyn = LanderDynamics(veh, models, "quaternion", True, inputs, Atmosphere() if atmo else None, 3386e3)
         y = sc.initial_state.copy()
         integ = make("verlet")
-        k = [0]
 
-        def step(m: int) -> None:
-            for _ in range(m):
-                integ.step(dyn, k[0] * 0.01, y, 0.01)
-                k[0] += 1
-        rows.append(dict(models=label, steps_per_s=_rate(step, n)))
+        def step(m: int, dyn=dyn, y=y, integ=integ) -> None:
+            for k in range(m):
+                integ.step(dyn, k * 0.01, y, 0.01)
+        steppers.append((label, step))
+    # Round-robin repeats: a burst of load from other processes then hits every stage alike.
+    best = {label: 0.0 for label, _ in steppers}
+    for _ in range(5):
+        for label, step in steppers:
+            best[label] = max(best[label], _rate(step, n, repeats=1))
+    rows = [dict(models=label, steps_per_s=best[label]) for label, _ in steppers]
     base = rows[0]["steps_per_s"]
     for r in rows:
         r["relative_cost"] = base / r["steps_per_s"]

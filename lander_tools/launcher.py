@@ -159,7 +159,7 @@ def resolve_controller(plan: FlightPlan) -> str | None:
     ap = getattr(scene, "autopilot", None)
     if ap is None:
         return None
-    return getattr(ap, "controller", None) or (ap.get("controller") if isinstance(ap, dict) else None)
+    return ap.get("controller") if hasattr(ap, "get") else getattr(ap, "controller", None)
 
 
 # --- child processes --------------------------------------------------------------------------

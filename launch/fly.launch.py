@@ -1,0 +1,73 @@
+"""Fly a scene on a full ROS 2 install: the sim node and (unless the scene has no autopilot or
+``controller:=none``) the autopilot node, optionally recorded with ``ros2 bag record``.
+
+    ros2 launch mars_lander fly.launch.py scene:=hover speed:=1.0
+    ros2 launch mars_lander fly.launch.py scene:=7 controller:=baseline params_file:=my.yaml
+    ros2 launch mars_lander fly.launch.py scene:=free-spin controller:=none record:=out/spin
+
+Mirrors ``lander fly`` (lander_tools/launcher.py), which does the same where ``launch`` is not
+installed (ROS 2 from PyPI). Differences: the sim starts running rather than paused, the whole
+launch shuts down when the sim node exits (``lander fly`` also ends on landing, crash or
+``--duration``), and there is no ``--compose`` (Python nodes cannot be loaded into a C++
+component container).
+"""
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+ARGS = {
+    "scene": ("hover", "scene name, alias or YAML path"),
+    "controller": ("", "autopilot controller plug-in; empty: the scene's; none: the sim alone"),
+    "speed": ("1.0", "real-time factor, 0 = as fast as possible"),
+    "lockstep": ("true", "the sim waits for the autopilot's answer to each state (with an autopilot)"),
+    "params_file": ("", "ROS parameters YAML with sections lander_sim / autopilot"),
+    "record": ("", "bag folder: record the flight with ros2 bag record (MCAP)"),
+}
+
+
+def _scene_controller(scene: str) -> str:
+    """The scene's own autopilot controller, or '' when it has none (e.g. the rotor, scenario 6)."""
+    from lander_sim.scenes import load_scene
+
+    autopilot = getattr(load_scene(scene), "autopilot", None)
+    if autopilot is None:
+        return ""
+    return autopilot.get("controller", "") if hasattr(autopilot, "get") else getattr(autopilot, "controller", "")
+
+
+def _nodes(context):
+    arg = {name: LaunchConfiguration(name).perform(context) for name in ARGS}
+    controller = arg["controller"] or _scene_controller(arg["scene"])
+    if controller.lower() == "none":
+        controller = ""
+    files = [arg["params_file"]] if arg["params_file"] else []
+    sim_params = {"scene": arg["scene"], "speed": float(arg["speed"]),
+                  "lockstep": bool(controller) and arg["lockstep"].lower() == "true"}
+    if not controller:
+        sim_params["command_timeout"] = 0.0  # the sim alone holds the last command for good
+    sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
+               parameters=[*files, sim_params])
+    actions = [
+        sim,
+        RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=[EmitEvent(event=Shutdown(reason="sim exited"))])),
+    ]
+    if controller:
+        actions.append(Node(package="mars_lander", executable="autopilot_node", name="autopilot", output="screen",
+                            parameters=[*files, {"scene": arg["scene"], "controller": controller, "use_sim_time": True}]))
+    if arg["record"]:
+        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", arg["record"],
+                                           "/clock", "/lander/state", "/lander/odom", "/lander/pose", "/lander/throttle",
+                                           "/lander/wind", "/lander/demand_altitude", "/lander/events",
+                                           "/lander/markers", "/autopilot/status", "/diagnostics"],
+                                      output="screen"))
+    return actions
+
+
+def generate_launch_description() -> LaunchDescription:
+    return LaunchDescription(
+        [DeclareLaunchArgument(name, default_value=default, description=doc) for name, (default, doc) in ARGS.items()]
+        + [OpaqueFunction(function=_nodes)]
+    )

@@ -1,0 +1,103 @@
+"""How `lander fly` ends: the sim node killed mid-flight leaves a valid bag holding everything up
+to the kill and exit status 2; Ctrl-C stops the flight cleanly with a valid bag (status 130)."""
+from __future__ import annotations
+
+import os
+import queue
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lander_tools.bagio import read_bag
+
+from .flightcheck import FLIGHT_TOPICS, REPO, mcap_counts
+
+SCRIPT = """
+name: long-spin
+scene: free-spin
+controller: none
+speed: 5.0
+sim: {publish_rate: 10.0}
+end: {time: 300.0}
+timeline:
+  - {t: 3.0, throttle: [0.0, 0.1, 0.0, 0.0]}
+"""
+
+
+def _start(tmp_path: Path) -> tuple[subprocess.Popen, "queue.Queue[str]", Path]:
+    (tmp_path / "long.yaml").write_text(SCRIPT)
+    bag = tmp_path / "bag"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lander_tools.cli", "fly", str(tmp_path / "long.yaml"), "--record", str(bag),
+         "--no-progress", "--topics", *FLIGHT_TOPICS],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
+    lines: "queue.Queue[str]" = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
+    return proc, lines, bag
+
+
+def _wait_line(lines: "queue.Queue[str]", pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=deadline - time.monotonic())
+        except queue.Empty:
+            break
+        log.append(line)
+        if m := re.search(pattern, line):
+            return m
+    raise AssertionError(f"no line matching {pattern!r} within {timeout} s:\n" + "".join(log))
+
+
+def _check_prefix_bag(bag: Path, t_min: float) -> None:
+    b = read_bag(bag)
+    assert not b.warnings
+    counts = {t: n for t, n in b.counts().items() if n}
+    assert dict(mcap_counts(bag)) == counts
+    s = b.series("/lander/state")
+    seq = s["sequence"].astype(np.int64)
+    start = int(np.flatnonzero(seq == 1)[-1])
+    # Everything the sim published after the reset, without a gap, up to where it stopped.
+    np.testing.assert_array_equal(seq[start:], np.arange(1, len(seq) - start + 1))
+    assert s["t"][-1] >= t_min
+
+
+def test_killing_the_sim_mid_flight_leaves_a_valid_bag_and_status_2(tmp_path: Path) -> None:
+    proc, lines, bag = _start(tmp_path)
+    log: list[str] = []
+    try:
+        pid = int(_wait_line(lines, r"pids sim (\d+)", log).group(1))
+        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)  # the flight is under way
+        os.kill(pid, signal.SIGKILL)
+        rc = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out = "".join(log) + "".join(iter(lambda: lines.get() if not lines.empty() else "", ""))
+    assert rc == 2, out
+    assert "node process 'sim' exited with code -9" in out
+    _check_prefix_bag(bag, 3.0)
+    assert read_bag(bag).meta["outcome"] == "error"
+
+
+def test_ctrl_c_stops_cleanly_with_a_valid_bag_and_status_130(tmp_path: Path) -> None:
+    proc, lines, bag = _start(tmp_path)
+    log: list[str] = []
+    try:
+        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
+        proc.send_signal(signal.SIGINT)
+        rc = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert rc == 130, "".join(log)
+    _check_prefix_bag(bag, 3.0)
+    assert read_bag(bag).meta["outcome"] == "interrupted"

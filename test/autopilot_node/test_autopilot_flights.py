@@ -151,13 +151,17 @@ def test_swapping_the_controller_mid_flight_happens_at_one_control_step(flight):
     g.wait_for(lambda: seconds(g.states[-1].header.stamp) >= 10.0, 60.0, "10 s of flight")
     reply = g.switch_controller("lqr")
     assert reply.success and reply.active_controller == "lqr", reply.message
-    states = fly_until(flight, 20.0, mark)
+    # Fly on 10 s past the switch (the event's stamp: the last state the old law answered).
+    g.wait_for(lambda: any(e.kind == FlightEvent.CONTROLLER_SWITCHED for e in g.events[mark.events:]),
+               what="the switch event")
+    t_switch = next(seconds(e.header.stamp) for e in g.events[mark.events:] if e.kind == FlightEvent.CONTROLLER_SWITCHED)
+    states = fly_until(flight, t_switch + 10.0, mark)
 
     pairs = answers(flight, states, mark)
-    assert len(pairs) >= 195
+    assert len(pairs) >= 195  # at least 20 s at 10 Hz
     # The first state answered by the new law; every earlier one by the old, every later by the new.
     k = next(i for i, (s, u) in enumerate(pairs) if u != expected(old, s))
-    assert 0 < k < len(pairs) - 50, "the swap did not happen mid-flight"
+    assert 95 < k < len(pairs) - 95, "the swap did not happen mid-flight (10 s of flight on both sides)"
     for s, u in pairs[:k]:
         assert u == expected(old, s), f"state {s.sequence} (before the swap) not answered by the old law"
     for s, u in pairs[k:]:

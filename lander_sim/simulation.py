@@ -6,13 +6,14 @@ the state untouched and is counted in :attr:`Simulation.rejected`.
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-from lander_sim import integrators
+from lander_sim import fast, integrators
 from lander_sim.errors import InputError
 from lander_sim.physics import rotation
 from lander_sim.physics.dynamics import LanderDynamics
@@ -132,6 +133,7 @@ class Snapshot:
     stabiliser: bool
     near_lock: bool
     fuel_out: bool
+    integrator: object
 
 
 class Simulation:
@@ -144,11 +146,20 @@ class Simulation:
         Overrides the scene's integrator (a name of ``lander_sim.integrators.REGISTRY``).
     dt : float, optional
         Overrides the scene's step [s].
+    use_fast_path : bool
+        Step with the compiled kernel (:mod:`lander_sim.fast`) whenever the scene and the moment
+        allow it (Verlet, quaternions, the standard lander models, no stabiliser or open
+        parachute); the numpy path is the fallback and agrees to ~1e-12 relative.
     """
 
-    def __init__(self, scene: Scene, integrator: str | None = None, dt: float | None = None) -> None:
+    def __init__(
+        self, scene: Scene, integrator: str | None = None, dt: float | None = None, use_fast_path: bool = True
+    ) -> None:
         self.scene = scene
-        self.integrator = integrators.make(integrator or scene.integrator)
+        name = integrator or scene.integrator
+        # Scene options belong to the scene's method; an overriding method starts from its defaults.
+        options = dict(scene.integrator_options) if name == scene.integrator else {}
+        self.integrator = integrators.make(name, **options)
         step = scene.dt if dt is None else dt
         if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0):
             raise InputError(f"dt must be a positive finite number of seconds, got {step!r}")
@@ -163,6 +174,9 @@ class Simulation:
         self.rejected: dict[str, int] = {"throttles": 0, "wind": 0, "parachute": 0, "stabiliser": 0}
         self.y = np.empty_like(scene.initial_state)
         self._y_prev = np.empty_like(self.y)
+        self._fast: fast.FastLander | None = None
+        if use_fast_path and fast.HAVE_NUMBA and fast.supports(scene, name):
+            self._fast = fast.FastLander(self.dynamics, renormalise=getattr(self.integrator, "renormalise", True))
         self.reset()
 
     # --- lifecycle ---------------------------------------------------------------
@@ -180,6 +194,9 @@ class Simulation:
         self._near_lock = False
         if self.parachute is not None:
             self.parachute.status = ChuteStatus.NOT_DEPLOYED
+        reset_integrator = getattr(self.integrator, "reset", None)
+        if reset_integrator is not None:
+            reset_integrator()  # e.g. the adaptive method's step size: same start, same flight
         self._check_gimbal()
 
     @property
@@ -240,16 +257,32 @@ class Simulation:
 
     # --- stepping --------------------------------------------------------------
 
+    @property
+    def fast_path(self) -> bool:
+        """True when :meth:`step` can use the compiled kernel right now."""
+        return self._fast is not None and self._fast.usable(self.stabiliser)
+
     def step(self, n: int = 1) -> None:
         """Advance ``n`` steps of ``dt``. After touchdown the clock runs on with the state frozen."""
         y, y_prev, dyn, integ, dt = self.y, self._y_prev, self.dynamics, self.integrator, self.dt
-        for _ in range(n):
+        remaining = n
+        while remaining > 0:
             if self.phase is not Phase.FLYING:
-                self._k += 1
+                self._k += remaining
+                return
+            if self.fast_path:
+                assert self._fast is not None
+                stop = self.ground.contact_radius if self.ground is not None else 0.0
+                # The kernel stops early after touchdown or fuel-out so the checks below see that step.
+                k = self._fast.advance(y, y_prev, dt, remaining, stop_radius=stop)
+                self._k += k
+                remaining -= k
+                self._after_step()
                 continue
             np.copyto(y_prev, y)
             integ.step(dyn, self._k * dt, y, dt)
             self._k += 1
+            remaining -= 1
             self._after_step()
 
     def advance_to(self, t: float) -> None:
@@ -384,6 +417,7 @@ class Simulation:
             stabiliser=self.stabiliser,
             near_lock=self._near_lock,
             fuel_out=self._fuel_out,
+            integrator=copy.deepcopy(self.integrator),
         )
 
     def restore(self, snap: Snapshot) -> None:
@@ -398,3 +432,4 @@ class Simulation:
         self.stabiliser = snap.stabiliser
         self._near_lock = snap.near_lock
         self._fuel_out = snap.fuel_out
+        self.integrator = copy.deepcopy(snap.integrator)  # internal state, e.g. the adaptive step size

@@ -487,6 +487,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     tmp = tempfile.TemporaryDirectory(prefix="lander-fly-")
     procs: dict[str, NodeProcess] = {}
+    executor: Any = None
     sup: _Supervisor | None = None
     result: FlightResult | None = None
     ctx_started = False
@@ -578,7 +579,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
     finally:
         progress.finish()
         _stop_all(procs)
-        if sup is not None and sup.recorder is not None and result is not None:
+        if sup is not None and sup.recorder is not None and result is not None and executor is not None:
             _drain(sup, executor)  # what the nodes sent before they stopped is still queued here
         if sup is not None and sup.recorder is not None:
             if result is not None:

@@ -35,7 +35,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".venv"
-BUILD = ROOT / "build" / "lander_interfaces"
+# Build tree and logs live inside .venv: colcon's build/ stays free for a full-ROS build, and
+# `rm -rf .venv` starts afresh.
+WORK = VENV / ".build"
+BUILD = WORK / "lander_interfaces"
+LOGS = WORK / "log"
 ENV_FILE = VENV / "lander_env.sh"
 PYVER = f"{sys.version_info.major}.{sys.version_info.minor}"
 
@@ -133,10 +137,10 @@ def _lib_dirs() -> list[str]:
 def step_requirements() -> None:
     if not (VENV / "bin" / "python").exists():
         _say("creating .venv")
-        _run([sys.executable, "-m", "venv", str(VENV)], ROOT / "build" / "log" / "venv.log")
+        _run([sys.executable, "-m", "venv", str(VENV)], LOGS / "venv.log")
     _say("installing pinned requirements (about a minute on a new machine)")
     _run([_venv_python(), "-m", "pip", "install", "--disable-pip-version-check", "-q",
-          "-r", str(ROOT / "requirements.txt")], ROOT / "build" / "log" / "pip.log")
+          "-r", str(ROOT / "requirements.txt")], LOGS / "pip.log")
     fix_wheel_cmake_paths()
 
 
@@ -171,9 +175,11 @@ def step_interfaces() -> None:
     _say("building lander_interfaces into .venv (about 15-40 s)")
     env = build_env()
     BUILD.mkdir(parents=True, exist_ok=True)
-    log = ROOT / "build" / "log" / "interfaces.log"
+    log = LOGS / "interfaces.log"
+    # Build type None (no -O flags): measured 41 s CPU against 52 s for Release; the generated
+    # code only converts messages between Python and C.
     _run(["cmake", "-S", str(ROOT / "lander_interfaces"), "-B", str(BUILD),
-          f"-DCMAKE_INSTALL_PREFIX={VENV}", "-DCMAKE_BUILD_TYPE=Release", "-DBUILD_TESTING=OFF",
+          f"-DCMAKE_INSTALL_PREFIX={VENV}", "-DCMAKE_BUILD_TYPE=None", "-DBUILD_TESTING=OFF",
           f"-DPython3_EXECUTABLE={_venv_python()}"], log, env)
     _run(["cmake", "--build", str(BUILD), "--parallel", str(os.cpu_count() or 2)],
          log.with_suffix(".build.log"), env)
@@ -183,7 +189,7 @@ def step_interfaces() -> None:
 def step_package() -> None:
     _say("installing mars_lander (editable)")
     _run([_venv_python(), "-m", "pip", "install", "--disable-pip-version-check", "-q",
-          "--no-deps", "--no-build-isolation", "-e", str(ROOT)], ROOT / "build" / "log" / "package.log")
+          "--no-deps", "--no-build-isolation", "-e", str(ROOT)], LOGS / "package.log")
 
 
 def write_env_file() -> None:
@@ -209,9 +215,9 @@ def lock() -> int:
     inner packages (rclpy, std_msgs, ...), which are not on PyPI and must not be pinned.
     """
     if not (VENV / "bin" / "python").exists():
-        _run([sys.executable, "-m", "venv", str(VENV)], ROOT / "build" / "log" / "venv.log")
+        _run([sys.executable, "-m", "venv", str(VENV)], LOGS / "venv.log")
     _run([_venv_python(), "-m", "pip", "install", "--disable-pip-version-check", "-q",
-          "-r", str(ROOT / "requirements.in")], ROOT / "build" / "log" / "pip-lock.log")
+          "-r", str(ROOT / "requirements.in")], LOGS / "pip-lock.log")
     listing = subprocess.run([_venv_python(), "-c", (
         "import importlib.metadata as md\n"
         "for d in md.distributions():\n"
@@ -243,8 +249,8 @@ def ensure() -> int:
 
 
 def _lock_path() -> Path:
-    (ROOT / "build").mkdir(exist_ok=True)
-    return ROOT / "build" / ".setup.lock"
+    VENV.mkdir(exist_ok=True)  # `python -m venv` accepts an existing empty folder
+    return VENV / ".setup.lock"
 
 
 def _do_steps(stale: list[str]) -> int:

@@ -117,6 +117,7 @@ class Scene:
     integrator: str
     dt: float
     models: Models
+    integrator_options: Mapping[str, Any] = field(default_factory=dict)
     translation: bool = True
     stabiliser: bool = False
     autopilot: Mapping[str, Any] | None = None
@@ -191,7 +192,8 @@ class _Reader:
 
 
 _TOP = {
-    "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "dt", "fixed_pivot",
+    "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "integrator_options", "dt",
+    "fixed_pivot",
     "models", "stabiliser", "gimbal_threshold", "wind_W", "autopilot", "end",
 }
 _MODELS = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "constant_force", "ground"}
@@ -312,6 +314,19 @@ def _initial(rd: _Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
     return pack(np.array(r), np.array(v), a, np.array(w), fuel)
 
 
+def _integrator_options(rd: _Reader, integ: str, node: Any) -> dict[str, Any]:
+    """``integrator_options``: keyword options of the chosen method (e.g. ``rtol``/``atol`` of ``adaptive``)."""
+    from lander_sim.integrators import make, options_of
+
+    allowed = set(options_of(integ))
+    opts = rd.mapping(node, "integrator_options", allowed)
+    try:
+        make(integ, **opts)  # the integrator validates values (e.g. positive tolerances)
+    except ValueError as exc:
+        raise rd.fail("integrator_options", str(exc)) from None
+    return dict(opts)
+
+
 def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     """Validate already-parsed YAML ``data``; ``file`` names it in errors."""
     rd = _Reader(file)
@@ -323,6 +338,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     aliases = tuple(str(rd.string(a, f"aliases[{k}]")) for k, a in enumerate(aliases_node))
     mode = rd.choice(top.get("attitude_mode", "quaternion"), "attitude_mode", ("quaternion", "euler"))
     integ = rd.choice(top.get("integrator", "verlet"), "integrator", tuple(sorted(INTEGRATORS)))
+    integ_options = _integrator_options(rd, integ, top.get("integrator_options"))
     vehicle = _vehicle(rd, top["vehicle"])
     models = _models(rd, top.get("models"))
     if models.thrusters and vehicle.n_thrusters == 0:
@@ -340,6 +356,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
         initial_state=_initial(rd, top["initial"], vehicle, mode),
         attitude=mode,
         integrator=integ,
+        integrator_options=integ_options,
         dt=rd.number(top["dt"], "dt", 0.0, strict_lo=True),
         models=models,
         translation=not rd.boolean(top.get("fixed_pivot", False), "fixed_pivot"),

@@ -15,7 +15,7 @@ import rosutil
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import Reset, SwitchController
 from rcl_interfaces.msg import Parameter as ParameterMsg
-from rcl_interfaces.srv import SetParametersAtomically
+from rcl_interfaces.srv import GetParameters, SetParametersAtomically
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -71,6 +71,7 @@ class Ground:
         self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", 10)
         self.switch = n.create_client(SwitchController, "/autopilot/switch_controller")
         self.set_params = n.create_client(SetParametersAtomically, "/autopilot/set_parameters_atomically")
+        self.get_params = n.create_client(GetParameters, "/autopilot/get_parameters")
         self.reset_sim = n.create_client(Reset, "/lander/reset")
         self.pause_sim = n.create_client(Trigger, "/lander/pause")
         self.resume_sim = n.create_client(Trigger, "/lander/resume")
@@ -120,6 +121,11 @@ class Ground:
         """Set parameters of /autopilot atomically through its parameter service; return the SetParametersResult."""
         msgs: list[ParameterMsg] = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
         return self.call(self.set_params, SetParametersAtomically.Request(parameters=msgs)).result
+
+    def autopilot_parameter(self, name: str) -> Any:
+        """Current value of one of /autopilot's parameters, through its parameter service."""
+        reply = self.call(self.get_params, GetParameters.Request(names=[name]))
+        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=reply.values[0])).value
 
     def publish_demand(self, value: float) -> None:
         self.pub_demand.publish(Float64(data=float(value)))

@@ -25,11 +25,14 @@ class Rig:
     ground: object
     children: dict[str, rosutil.ChildProcess]
 
-    def start(self, module: str, name: str, params: dict[str, object]) -> rosutil.ChildProcess:
+    def start(self, module: str, name: str, params: dict[str, object], params_file: str | None = None) -> rosutil.ChildProcess:
         from .ground import ros_args
 
+        args = ros_args(params)
+        if params_file is not None:  # before the -p overrides, which win
+            args[1:1] = ["--params-file", params_file]
         env = dict(os.environ)
-        child = rosutil.ChildProcess(["-m", module, *ros_args(params)], env=env, cwd=REPO, name=name)
+        child = rosutil.ChildProcess(["-m", module, *args], env=env, cwd=REPO, name=name)
         self.children[name] = child
         return child
 

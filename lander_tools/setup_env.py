@@ -172,7 +172,7 @@ def step_interfaces() -> None:
     if shutil.which("cmake") is None:
         raise SetupError("cmake not found: install cmake and a C/C++ compiler "
                          "(on Debian: apt-get install cmake g++)")
-    _say("building lander_interfaces into .venv (about 15-40 s)")
+    _say("building lander_interfaces into .venv (about a minute)")
     env = build_env()
     BUILD.mkdir(parents=True, exist_ok=True)
     log = LOGS / "interfaces.log"

@@ -7,8 +7,7 @@ sleeps a fixed time.
 """
 from __future__ import annotations
 
-import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import rosutil
@@ -40,14 +39,6 @@ def ros_args(params: dict[str, object]) -> list[str]:
             lit = repr(v)
         args += ["-p", f"{k}:={lit}"]
     return args
-
-
-def start_autopilot(spawn_python: Callable[..., rosutil.ChildProcess], **params: object) -> rosutil.ChildProcess:
-    return spawn_python(["-m", "lander_autopilot.node", *ros_args(params)], name="autopilot")
-
-
-def start_sim(spawn_python: Callable[..., rosutil.ChildProcess], **params: object) -> rosutil.ChildProcess:
-    return spawn_python(["-m", "lander_sim.node", *ros_args(params)], name="sim")
 
 
 class Ground:
@@ -137,8 +128,6 @@ class Ground:
                 return cmd
         return None
 
-    def events_of(self, kind: int) -> list[FlightEvent]:
-        return [e for e in self.events if e.kind == kind]
 
 
 def wait_for_graph(ground: Ground, subscribers: dict[str, int], publishers: dict[str, int]) -> None:
@@ -155,14 +144,3 @@ def wait_for_graph(ground: Ground, subscribers: dict[str, int], publishers: dict
 
 def seconds(stamp: Any) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
-
-
-def check_alive(*children: rosutil.ChildProcess) -> None:
-    for c in children:
-        if c.returncode is not None:
-            sys.stderr.write(c.output())
-            raise AssertionError(f"{c.name} exited with {c.returncode}")
-
-
-def as_list(values: Sequence[float]) -> list[float]:
-    return [float(x) for x in values]

@@ -19,7 +19,6 @@ from std_srvs.srv import Trigger
 
 from lander_autopilot.controllers import Demand, make_controller
 from lander_autopilot.ros.convert import state_view
-from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world
 from lander_sim.scenes import load_scene
 

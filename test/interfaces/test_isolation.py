@@ -1,0 +1,53 @@
+"""Test isolation itself: private domain, localhost discovery, clean-up of dead processes' shm."""
+
+import os
+import re
+import signal
+import uuid
+from pathlib import Path
+
+import rosutil
+
+HERE = Path(__file__).resolve().parent
+SHM = Path("/dev/shm")
+SEGMENT = re.compile(r"fastdds_[0-9a-f]{16}$")  # a participant's own segment (ports are shared)
+START_TIMEOUT_S = 30.0  # a Python child importing rclpy on 2 busy cores; the wait ends early
+
+
+def _segments() -> set[Path]:
+    return {p for p in SHM.glob("fastdds_*") if SEGMENT.match(p.name)}
+
+
+def test_run_has_private_domain_and_localhost_discovery():
+    domain = int(os.environ["ROS_DOMAIN_ID"])
+    assert rosutil.DOMAIN_MIN <= domain <= rosutil.DOMAIN_MAX  # never 0, the default of stray nodes
+    assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_domain_claims_are_distinct_while_held():
+    """Two claims starting from the same seed must not collide (the lock walks to a free id)."""
+    own = int(os.environ["ROS_DOMAIN_ID"])
+    a = rosutil.claim_domain_id(seed=own)
+    b = rosutil.claim_domain_id(seed=own)
+    assert len({own, a, b}) == 3
+
+
+def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):
+    before = _segments()
+    prefix = f"/iso_{uuid.uuid4().hex[:8]}"
+    victim = spawn_python([str(HERE / "sample_node.py"), prefix], name="victim")
+    rosutil.wait_for(lambda: _segments() - before, START_TIMEOUT_S, what="victim's shm segment")
+    victim_files = _segments() - before
+    victim.proc.send_signal(signal.SIGKILL)  # no chance to clean up: leaves its files behind
+    victim.proc.wait()
+    assert all(f.exists() for f in victim_files)
+
+    survivor = spawn_python([str(HERE / "sample_node.py"), prefix + "_b"], name="survivor")
+    rosutil.wait_for(lambda: _segments() - before - victim_files, START_TIMEOUT_S, what="survivor's shm segment")
+    survivor_files = _segments() - before - victim_files
+
+    removed = rosutil.clean_stale_fastdds_shm(min_age_s=0.0)
+    assert victim_files <= set(removed)
+    assert not any(f.exists() for f in victim_files)
+    assert all(f.exists() for f in survivor_files), "a live process's shm segment was removed"
+    assert survivor.returncode is None

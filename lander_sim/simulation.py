@@ -36,6 +36,7 @@ from lander_sim.physics.models import (
 from lander_sim.physics.models.stabiliser import stabilise
 from lander_sim.physics.rigid_body import kinetic_energy
 from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W, StateView
+from lander_sim.physics.wind import GustProcess, WindError
 from lander_sim.scenes import Scene
 
 __all__ = ["Derived", "Event", "EventKind", "Phase", "Simulation", "Snapshot", "build_dynamics"]
@@ -134,6 +135,9 @@ class Snapshot:
     near_lock: bool
     fuel_out: bool
     integrator: object
+    mean_wind_W: np.ndarray | None = None
+    gusts: object = None
+    failed: np.ndarray | None = None
 
 
 class Simulation:
@@ -150,6 +154,14 @@ class Simulation:
         Step with the compiled kernel (:mod:`lander_sim.fast`) whenever the scene and the moment
         allow it (Verlet, quaternions, the standard lander models, no stabiliser or open
         parachute); the numpy path is the fallback and agrees to ~1e-12 relative.
+
+    Wind is the mean (``scene.wind_W``, replaced by :meth:`set_wind`) plus the scene's gusts
+    (``scene.gust``, :class:`~lander_sim.physics.wind.GustProcess`), advanced once per physics
+    step: the step is the simulation's only clock, so the gusts (like everything else) do not
+    depend on how callers group steps (``step(10)`` or ten ``step(1)``), on the control rate or on
+    the path (compiled kernel or numpy), and a re-flight from the same seed is bit-identical.
+    Scheduled thruster failures (``scene.thruster_failures``) take effect at the first step starting
+    at or after their time: the thruster's throttle is held at 0 from then on.
     """
 
     def __init__(
@@ -165,6 +177,10 @@ class Simulation:
             raise InputError(f"dt must be a positive finite number of seconds, got {step!r}")
         self.dt = float(step)
         self.inputs = Inputs(throttles=np.zeros(scene.vehicle.n_thrusters), wind_W=np.array(scene.wind_W, dtype=float))
+        self._mean_wind_W = np.array(scene.wind_W, dtype=float)
+        self.gusts: GustProcess | None = GustProcess(scene.gust, self.dt) if scene.gust is not None else None
+        self._failed = np.zeros(scene.vehicle.n_thrusters, dtype=bool)
+        self._failures: list[tuple[int, int]] = []
         self.dynamics = build_dynamics(scene, self.inputs)
         self.ground: Ground | None = None
         if scene.models.ground is not None and scene.models.gravity is not None:
@@ -181,12 +197,28 @@ class Simulation:
 
     # --- lifecycle ---------------------------------------------------------------
 
-    def reset(self) -> None:
-        """Back to the scene's initial state at t = 0 (the ``rejected`` counts are kept)."""
+    def reset(self, seed: int | None = None) -> None:
+        """Back to the scene's initial state at t = 0 (the ``rejected`` counts are kept).
+
+        ``seed`` re-seeds the gusts (an integer in [0, 2**63)) and stays in force for later resets;
+        None restarts them from the seed in force (the scene's ``wind.gust.seed`` until a seed is
+        given), so a plain reset replays the same flight bit for bit. The mean wind goes back to
+        the scene's; no thruster has failed yet.
+        """
+        if self.gusts is not None:
+            try:
+                self.gusts.reset(seed)
+            except WindError as exc:
+                raise InputError(f"reset: {exc}") from None
+        elif seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+            raise InputError(f"reset: seed must be an integer in [0, 2**63), got {seed!r}")
         np.copyto(self.y, self.scene.initial_state)
         self._k = 0
         self.inputs.throttles[:] = 0.0
-        self.inputs.wind_W[:] = self.scene.wind_W
+        self._mean_wind_W[:] = self.scene.wind_W
+        self._failed[:] = False
+        self._schedule_failures()
+        self._update_wind()
         self.phase = Phase.FLYING
         self.stabiliser = self.scene.stabiliser
         self._events: list[Event] = []
@@ -224,16 +256,51 @@ class Simulation:
                 raise self._reject("throttles", f"throttles[{i}] must be a finite number in [0, 1], got {float(x)!r}")
         if self.phase is Phase.FLYING and not self._fuel_out:
             self.inputs.throttles[:] = t
+            self.inputs.throttles[self._failed] = 0.0  # a failed thruster ignores its command
 
     def set_wind(self, wind_W: Sequence[float]) -> None:
-        """Wind velocity, world frame [m/s]; used by the drag and parachute models."""
+        """Mean wind velocity, world frame [m/s] (replaces the scene's; the gusts, if any, ride on it).
+        Used by the drag and parachute models."""
         try:
             w = np.asarray(wind_W, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise self._reject("wind", f"wind must be 3 numbers (world frame, m/s), got {wind_W!r}") from None
         if w.shape != (3,) or not np.all(np.isfinite(w)):
             raise self._reject("wind", f"wind must be 3 finite numbers (world frame, m/s), got {wind_W!r}")
-        self.inputs.wind_W[:] = w
+        self._mean_wind_W[:] = w
+        self._update_wind()
+
+    def _update_wind(self) -> None:
+        """The wind the models see: mean + current gust (in place, no allocation)."""
+        w = self.inputs.wind_W
+        w[:] = self._mean_wind_W
+        if self.gusts is not None:
+            w += self.gusts.gust_W
+
+    @property
+    def mean_wind_W(self) -> np.ndarray:
+        """The mean wind in force, world frame [m/s] (a copy); ``inputs.wind_W`` adds the gust."""
+        return self._mean_wind_W.copy()
+
+    @property
+    def failed_thrusters(self) -> tuple[int, ...]:
+        """Indices of the thrusters that have failed so far."""
+        return tuple(int(i) for i in np.flatnonzero(self._failed))
+
+    def _schedule_failures(self) -> None:
+        """Pending failures as ``(step index, thruster)``, soonest first: the first step starting at or
+        after the failure time (the 1e-9 absorbs the rounding of ``time / dt``)."""
+        self._failures = sorted(
+            (max(0, math.ceil(f.time / self.dt - 1e-9)), f.thruster)
+            for f in self.scene.thruster_failures if not self._failed[f.thruster]
+        )
+
+    def _apply_due_failures(self) -> None:
+        """Fail every thruster whose failure step has come (the step about to start is ``_k``)."""
+        while self._failures and self._failures[0][0] <= self._k:
+            _, i = self._failures.pop(0)
+            self._failed[i] = True
+            self.inputs.throttles[i] = 0.0
 
     def set_stabiliser(self, on: bool) -> None:
         """Switch the attitude stabiliser aid on or off."""
@@ -266,23 +333,32 @@ class Simulation:
         """Advance ``n`` steps of ``dt``. After touchdown the clock runs on with the state frozen."""
         y, y_prev, dyn, integ, dt = self.y, self._y_prev, self.dynamics, self.integrator, self.dt
         remaining = n
+        gusts = self.gusts
         while remaining > 0:
             if self.phase is not Phase.FLYING:
                 self._k += remaining
                 return
+            if self._failures:
+                self._apply_due_failures()
             if self.fast_path:
                 assert self._fast is not None
                 stop = self.ground.contact_radius if self.ground is not None else 0.0
+                # Inputs are constant inside one kernel call: stop at the next gust update or failure.
+                chunk = 1 if gusts is not None else remaining
+                if self._failures:
+                    chunk = min(chunk, self._failures[0][0] - self._k)
                 # The kernel stops early after touchdown or fuel-out so the checks below see that step.
-                k = self._fast.advance(y, y_prev, dt, remaining, stop_radius=stop)
+                k = self._fast.advance(y, y_prev, dt, chunk, stop_radius=stop)
                 self._k += k
                 remaining -= k
-                self._after_step()
-                continue
-            np.copyto(y_prev, y)
-            integ.step(dyn, self._k * dt, y, dt)
-            self._k += 1
-            remaining -= 1
+            else:
+                np.copyto(y_prev, y)
+                integ.step(dyn, self._k * dt, y, dt)
+                self._k += 1
+                remaining -= 1
+            if gusts is not None:
+                gusts.advance()  # the gust of the next step (one draw per step, whatever the path)
+                self._update_wind()
             self._after_step()
 
     def advance_to(self, t: float) -> None:
@@ -418,6 +494,9 @@ class Simulation:
             near_lock=self._near_lock,
             fuel_out=self._fuel_out,
             integrator=copy.deepcopy(self.integrator),
+            mean_wind_W=self._mean_wind_W.copy(),
+            gusts=None if self.gusts is None else self.gusts.get_state(),
+            failed=self._failed.copy(),
         )
 
     def restore(self, snap: Snapshot) -> None:
@@ -433,3 +512,11 @@ class Simulation:
         self._near_lock = snap.near_lock
         self._fuel_out = snap.fuel_out
         self.integrator = copy.deepcopy(snap.integrator)  # internal state, e.g. the adaptive step size
+        if snap.mean_wind_W is not None:
+            self._mean_wind_W[:] = snap.mean_wind_W
+        if self.gusts is not None and snap.gusts is not None:
+            self.gusts.set_state(snap.gusts)  # type: ignore[arg-type]
+        if snap.failed is not None:
+            self._failed[:] = snap.failed
+        self._schedule_failures()
+        self.inputs.wind_W[:] = snap.wind_W

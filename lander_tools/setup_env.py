@@ -135,6 +135,9 @@ def _lib_dirs() -> list[str]:
 
 
 def step_requirements() -> None:
+    if sys.version_info[:2] != (3, 11):
+        raise SetupError(f"the ROS 2 wheels on PyPI are built for CPython 3.11, this is {PYVER} "
+                         f"({sys.executable}); run with PYTHON=/path/to/python3.11 ./dev ...")
     if not (VENV / "bin" / "python").exists():
         _say("creating .venv")
         _run([sys.executable, "-m", "venv", str(VENV)], LOGS / "venv.log")

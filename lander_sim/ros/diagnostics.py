@@ -7,14 +7,20 @@ unit-tested; :func:`to_diagnostic_status` turns it into one
 from __future__ import annotations
 
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
+
+import numpy as np
 
 #: DiagnosticStatus levels (``diagnostic_msgs/DiagnosticStatus``: OK=0, WARN=1, ERROR=2).
 OK, WARN, ERROR = 0, 1, 2
 
 #: |q| - 1 above which the integrator's quaternion drift is reported as a warning.
 QUAT_DRIFT_WARN = 1e-6
+#: States whose publish time is remembered for matching commands (a ring indexed by sequence).
+LATENCY_RING = 64
+#: Control-loop latency samples kept for the percentiles (the most recent ones).
+LATENCY_SAMPLES = 2000
 
 
 @dataclass
@@ -36,6 +42,38 @@ class NodeHealth:
     _window_wall: float = field(default_factory=time.monotonic)
     _window_sim: float = 0.0
     rtf: float = 0.0  # real-time factor achieved over the last diagnostics window
+    #: Control-loop latencies [s, wall]: state published -> first command answering it received.
+    latencies: deque = field(default_factory=lambda: deque(maxlen=LATENCY_SAMPLES))
+    _ring_seq: list = field(default_factory=lambda: [0] * LATENCY_RING)
+    _ring_wall: list = field(default_factory=lambda: [0.0] * LATENCY_RING)
+
+    def state_published(self, sequence: int, wall: float) -> None:
+        """Remember when state ``sequence`` went out (monotonic wall clock [s])."""
+        i = sequence % LATENCY_RING
+        self._ring_seq[i], self._ring_wall[i] = sequence, wall
+
+    def forget_published(self) -> None:
+        """A reset restarts the sequence: answers to the old numbers must not match the new states."""
+        self._ring_seq[:] = [0] * LATENCY_RING
+
+    def command_received(self, state_sequence: int, wall: float) -> None:
+        """A command answering ``state_sequence`` was accepted at ``wall``: one latency sample.
+
+        Only the first answer to a state counts (the slot is cleared), and only while the
+        state is among the last :data:`LATENCY_RING` published (older answers, or answers
+        to a previous reset epoch's numbers, find another sequence in the slot).
+        """
+        i = state_sequence % LATENCY_RING
+        if self._ring_seq[i] == state_sequence and state_sequence != 0:
+            self.latencies.append(wall - self._ring_wall[i])
+            self._ring_seq[i] = 0
+
+    def latency_percentiles(self) -> tuple[float, float] | None:
+        """(p50, p95) of the kept control-loop latencies [s], or None without samples."""
+        if not self.latencies:
+            return None
+        p50, p95 = np.percentile(np.fromiter(self.latencies, float, len(self.latencies)), (50.0, 95.0))
+        return float(p50), float(p95)
 
     def reject(self, kind: str) -> int:
         """Count one rejected input of ``kind``; returns the new count of that kind."""
@@ -95,6 +133,10 @@ def to_diagnostic_status(status, health: NodeHealth, *, name: str, hardware_id: 
         "lockstep_timeouts": str(health.lockstep_timeouts),
         "stale_commands": str(health.stale_commands),
     }
+    lat = health.latency_percentiles()
+    values["control_latency_samples"] = str(len(health.latencies))
+    values["control_latency_p50_ms"] = "n/a" if lat is None else f"{1e3 * lat[0]:.3f}"
+    values["control_latency_p95_ms"] = "n/a" if lat is None else f"{1e3 * lat[1]:.3f}"
     values.update({f"rejected.{k}": str(v) for k, v in sorted(health.rejected.items())})
     values.update(extra)
     status.values = [KeyValue(key=k, value=v) for k, v in values.items()]

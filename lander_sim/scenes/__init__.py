@@ -10,6 +10,7 @@ from lander_sim.scenes.loader import (
     Scene,
     SceneError,
     SceneInfo,
+    ThrusterFailure,
     list_scenes,
     load_file,
     load_scene,
@@ -18,5 +19,5 @@ from lander_sim.scenes.loader import (
 
 __all__ = [
     "AtmosphereConfig", "ConstantForceConfig", "DragConfig", "GravityConfig", "GroundConfig", "Models",
-    "ParachuteConfig", "Scene", "SceneError", "SceneInfo", "list_scenes", "load_file", "load_scene", "parse_scene",
+    "ParachuteConfig", "Scene", "SceneError", "SceneInfo", "ThrusterFailure", "list_scenes", "load_file", "load_scene", "parse_scene",
 ]

@@ -18,6 +18,7 @@ from lander_sim.physics import constants as c
 from lander_sim.physics import rotation
 from lander_sim.physics.state import pack
 from lander_sim.physics.vehicle import Vehicle
+from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
 
 SCENE_DIR = Path(__file__).resolve().parent
@@ -89,6 +90,15 @@ class GroundConfig:
 
 
 @dataclass(frozen=True)
+class ThrusterFailure:
+    """Thruster ``thruster`` (index into the vehicle's thrusters) stops for good at sim time ``time`` [s]:
+    from the first step starting at or after ``time`` it produces nothing and burns nothing."""
+
+    thruster: int
+    time: float
+
+
+@dataclass(frozen=True)
 class Models:
     """Which models are on (None = off) and their parameters."""
 
@@ -106,7 +116,10 @@ class Scene:
     """A validated scene. ``initial_state`` is the flat ``y`` of :mod:`lander_sim.physics.state`.
 
     ``translation`` False is a fixed pivot (scene key ``fixed_pivot: true``).
-    ``wind_W`` [m/s] is the initial wind; ``end_time`` [s] the optional ``end.max_time``.
+    ``wind_W`` [m/s] is the mean wind, world frame (scene key ``wind_W`` or ``wind.mean_W``);
+    ``gust`` the optional turbulence about it (``wind.gust``, :mod:`lander_sim.physics.wind`);
+    ``thruster_failures`` the scheduled failures (``vehicle.failures``);
+    ``end_time`` [s] the optional ``end.max_time``.
     """
 
     name: str
@@ -123,6 +136,8 @@ class Scene:
     autopilot: Mapping[str, Any] | None = None
     gimbal_threshold: float = 1e-3
     wind_W: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gust: GustConfig | None = None
+    thruster_failures: tuple[ThrusterFailure, ...] = ()
     end_time: float | None = None
     aliases: tuple[str, ...] = ()
     source: Path | None = field(default=None, compare=False)
@@ -194,14 +209,24 @@ class _Reader:
 _TOP = {
     "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "integrator_options", "dt",
     "fixed_pivot",
-    "models", "stabiliser", "gimbal_threshold", "wind_W", "autopilot", "end",
+    "models", "stabiliser", "gimbal_threshold", "wind_W", "wind", "autopilot", "end",
 }
 _MODELS = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "constant_force", "ground"}
 
 
-def _vehicle(rd: _Reader, node: Any) -> Vehicle:
+_PRESET_KEYS = {"preset", "thrusters", "disabled", "size", "dry_mass_scale", "inertia_scale", "thrust_scale", "failures"}
+
+
+def _vehicle(rd: _Reader, node: Any) -> tuple[Vehicle, tuple[ThrusterFailure, ...]]:
+    """The vehicle and its scheduled thruster failures.
+
+    Preset form: ``{preset: lander, thrusters: canted, disabled: [..], size: L,
+    dry_mass_scale: s, inertia_scale: s, thrust_scale: [s0, s1, s2, s3],
+    failures: [{thruster: i, time: t}]}``: the scales make the true vehicle differ from the
+    nominal preset (robustness sweeps), each > 0.
+    """
     if isinstance(node, dict) and "preset" in node:
-        v = rd.mapping(node, "vehicle", {"preset", "thrusters", "disabled", "size"})
+        v = rd.mapping(node, "vehicle", _PRESET_KEYS)
         rd.choice(v["preset"], "vehicle.preset", tuple(vehicles.PRESETS))
         layout = rd.choice(v.get("thrusters", "standard"), "vehicle.thrusters", vehicles.THRUSTER_LAYOUTS)
         dis = v.get("disabled", [])
@@ -212,7 +237,19 @@ def _vehicle(rd: _Reader, node: Any) -> Vehicle:
             if i > 3:
                 raise rd.fail(f"vehicle.disabled[{k}]", f"expected a thruster index 0..3, got {i}")
         size = rd.number(v.get("size", c.LANDER_SIZE), "vehicle.size", 0.0, strict_lo=True)
-        return vehicles.PRESETS[v["preset"]](thrusters=layout, disabled=idx, size=size)
+        vehicle = vehicles.PRESETS[v["preset"]](thrusters=layout, disabled=idx, size=size)
+        n = vehicle.n_thrusters
+        mass_s = rd.number(v.get("dry_mass_scale", 1.0), "vehicle.dry_mass_scale", 0.0, strict_lo=True)
+        inertia_s = rd.number(v.get("inertia_scale", 1.0), "vehicle.inertia_scale", 0.0, strict_lo=True)
+        thrust_s = None
+        if "thrust_scale" in v:
+            ts = v["thrust_scale"]
+            if not isinstance(ts, list) or len(ts) != n:
+                raise rd.fail("vehicle.thrust_scale", f"expected a list of {n} numbers > 0 (one per thruster), got {ts!r}")
+            thrust_s = tuple(rd.number(x, f"vehicle.thrust_scale[{i}]", 0.0, strict_lo=True) for i, x in enumerate(ts))
+        if mass_s != 1.0 or inertia_s != 1.0 or thrust_s is not None:
+            vehicle = vehicles.disperse(vehicle, mass_s, inertia_s, thrust_s)
+        return vehicle, _failures(rd, v.get("failures", []), n)
     v = rd.mapping(node, "vehicle", {"preset", "dry_mass", "fuel_capacity", "inertia", "size"}, ("dry_mass", "inertia"))
     inertia = rd.vector(v["inertia"], "vehicle.inertia")
     for i, x in enumerate(inertia):
@@ -223,7 +260,42 @@ def _vehicle(rd: _Reader, node: Any) -> Vehicle:
         fuel_capacity=rd.number(v.get("fuel_capacity", 0.0), "vehicle.fuel_capacity", 0.0),
         inertia_diag=inertia,  # type: ignore[arg-type]
         size=rd.number(v.get("size", 1.0), "vehicle.size", 0.0, strict_lo=True),
-    )
+    ), ()
+
+
+def _failures(rd: _Reader, node: Any, n: int) -> tuple[ThrusterFailure, ...]:
+    """``vehicle.failures: [{thruster: i, time: t}, ...]``: each thruster at most once, ``0 <= i < n``, ``t >= 0`` s."""
+    if not isinstance(node, list):
+        raise rd.fail("vehicle.failures", f"expected a list of {{thruster: index, time: seconds}}, got {node!r}")
+    out: list[ThrusterFailure] = []
+    for k, item in enumerate(node):
+        path = f"vehicle.failures[{k}]"
+        f = rd.mapping(item, path, {"thruster", "time"}, ("thruster", "time"))
+        i = rd.integer(f["thruster"], f"{path}.thruster", 0)
+        if i >= n:
+            raise rd.fail(f"{path}.thruster", f"expected a thruster index 0..{n - 1}, got {i}")
+        if any(o.thruster == i for o in out):
+            raise rd.fail(f"{path}.thruster", f"thruster {i} is already listed as failing")
+        out.append(ThrusterFailure(i, rd.number(f["time"], f"{path}.time", 0.0)))
+    return tuple(out)
+
+
+def _wind(rd: _Reader, top: dict[str, Any]) -> tuple[tuple[float, ...], GustConfig | None]:
+    """Mean wind (``wind_W`` or ``wind.mean_W``, world frame, m/s) and gusts (``wind.gust``)."""
+    w = rd.mapping(top.get("wind"), "wind", {"mean_W", "gust"})
+    if "mean_W" in w and "wind_W" in top:
+        raise rd.fail("wind.mean_W", "the mean wind is given twice: keep wind.mean_W or the older wind_W, not both")
+    mean = rd.vector(w.get("mean_W", top.get("wind_W", [0, 0, 0])), "wind.mean_W" if "mean_W" in w else "wind_W")
+    gust = None
+    if w.get("gust") is not None:
+        g = rd.mapping(w["gust"], "wind.gust", {"sigma", "tau", "seed"}, ("sigma", "tau"))
+        sigma = rd.number(g["sigma"], "wind.gust.sigma", 0.0)
+        tau = rd.number(g["tau"], "wind.gust.tau", 0.0, strict_lo=True)
+        seed = g.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+            raise rd.fail("wind.gust.seed", f"expected an integer in [0, 2**63), got {seed!r}")
+        gust = GustConfig(sigma=sigma, tau=tau, seed=seed)
+    return mean, gust
 
 
 def _on(m: dict[str, Any], key: str) -> bool:
@@ -339,7 +411,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     mode = rd.choice(top.get("attitude_mode", "quaternion"), "attitude_mode", ("quaternion", "euler"))
     integ = rd.choice(top.get("integrator", "verlet"), "integrator", tuple(sorted(INTEGRATORS)))
     integ_options = _integrator_options(rd, integ, top.get("integrator_options"))
-    vehicle = _vehicle(rd, top["vehicle"])
+    vehicle, failures = _vehicle(rd, top["vehicle"])
     models = _models(rd, top.get("models"))
     if models.thrusters and vehicle.n_thrusters == 0:
         raise rd.fail("models.thrusters", "the vehicle has no thrusters: use vehicle.preset: lander")
@@ -347,6 +419,8 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     if autopilot is not None:
         if not isinstance(autopilot, dict) or not isinstance(autopilot.get("controller"), str):
             raise rd.fail("autopilot", f"expected null or a mapping with a string 'controller' key, got {autopilot!r}")
+    dt = rd.number(top["dt"], "dt", 0.0, strict_lo=True)
+    mean_wind, gust = _wind(rd, top)
     end = rd.mapping(top.get("end"), "end", {"max_time"})
     end_time = rd.number(end["max_time"], "end.max_time", 0.0, strict_lo=True) if "max_time" in end else None
     return Scene(
@@ -357,13 +431,15 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
         attitude=mode,
         integrator=integ,
         integrator_options=integ_options,
-        dt=rd.number(top["dt"], "dt", 0.0, strict_lo=True),
+        dt=dt,
         models=models,
         translation=not rd.boolean(top.get("fixed_pivot", False), "fixed_pivot"),
         stabiliser=rd.boolean(top.get("stabiliser", False), "stabiliser"),
         autopilot=autopilot,
         gimbal_threshold=rd.number(top.get("gimbal_threshold", 1e-3), "gimbal_threshold", 0.0, 1.0, strict_lo=True),
-        wind_W=rd.vector(top.get("wind_W", [0, 0, 0]), "wind_W"),  # type: ignore[arg-type]
+        wind_W=mean_wind,  # type: ignore[arg-type]
+        gust=gust,
+        thruster_failures=failures,
         end_time=end_time,
         aliases=aliases,
         source=source,

@@ -50,3 +50,27 @@ def lander(thrusters: str = "standard", disabled: tuple[int, ...] = (), size: fl
 
 
 PRESETS = {"lander": lander}
+
+
+def disperse(
+    vehicle: Vehicle,
+    dry_mass_scale: float = 1.0,
+    inertia_scale: float = 1.0,
+    thrust_scale: tuple[float, ...] | None = None,
+) -> Vehicle:
+    """``vehicle`` with its true properties off the nominal ones (the robustness-sweep dispersions).
+
+    ``dry_mass * dry_mass_scale``; the inertia (``gyration_sq`` or ``inertia_diag``) times
+    ``inertia_scale``; thruster ``i``'s ``max_thrust`` times ``thrust_scale[i]``. All scales > 0
+    (checked by the caller, the scene loader, which names the key).
+    """
+    from dataclasses import replace
+
+    kw: dict = {"dry_mass": vehicle.dry_mass * dry_mass_scale}
+    if vehicle.gyration_sq is not None:
+        kw["gyration_sq"] = tuple(k * inertia_scale for k in vehicle.gyration_sq)
+    else:
+        kw["inertia_diag"] = tuple(i * inertia_scale for i in vehicle.inertia_diag)  # type: ignore[union-attr]
+    if thrust_scale is not None:
+        kw["thrusters"] = tuple(replace(th, max_thrust=th.max_thrust * s) for th, s in zip(vehicle.thrusters, thrust_scale))
+    return replace(vehicle, **kw)

@@ -1,82 +1,252 @@
-"""Hand one dispersed case to the normal ``lander fly`` path (:mod:`lander_tools.launcher`).
+"""Fly sweep cases through the ROS nodes (the ``lander fly`` path) and check them against core-only.
 
-The launcher flies a *scene file* plus a timeline, so a case becomes: a scene YAML (the nominal
-scene's file with the dispersed ``initial`` block) and timeline actions (demand altitude at 0 and
-at the step time, the wind of every control period). Vehicle dispersions (mass, inertia, thrust
-errors) and thruster failures have no equivalent there yet: such cases are refused, naming them.
+A case becomes a scene file (:mod:`lander_tools.sweep.case_scene`: dispersed initial state, true
+vehicle, thruster failure, mean wind and seeded gusts, all inside the simulator) plus a timeline of
+demand altitudes, flown by :mod:`lander_tools.launcher` with both nodes in lockstep at full speed
+and recorded; :func:`row_from_bag` reduces the bag to the very same :class:`Samples` and metrics
+as the core-only loop, and :func:`through_ros` compares the two.
+
+Settings that make the nodes fly the core-only loop's equations at its instants:
+
+* sim ``publish_rate`` = the sweep's control rate (one state, one answer per control period);
+* sim ``seed`` = the case's gust seed (the node's ``seed`` parameter reseeds the gusts at reset);
+* sim ``lockstep_timeout`` long (a loaded machine must not let the sim step without the answer);
+* the demand step published one control period early (see :func:`plan_for_case`);
+* autopilot ``scene`` = the *nominal* scene (the controller is designed on the nominal vehicle,
+  as in core-only; the simulator flies the dispersed one).
 """
 from __future__ import annotations
 
 import math
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from lander_sim.physics.state import ATT, FUEL, OMEGA_B, R_W, V_W
+from lander_tools.sweep.case_scene import NotRepresentable, nominal_scene, write_case_scene
 from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.flight import apply_case, base_demand_altitude, nominal_scene, wind_schedule
+from lander_tools.sweep.flight import control_period, demand_schedule, make_row
+from lander_tools.sweep.metrics import Samples, altitude_and_tilt
 from lander_tools.sweep.spec import SweepSpec
 
+__all__ = ["NotRepresentable", "RosCheck", "plan_for_case", "row_from_bag", "scene_file_for_case", "through_ros"]
 
-class NotRepresentable(ValueError):
-    """The case uses a dispersion the ROS path cannot carry yet (the message names it)."""
+#: Topics the check needs (fewer topics: a faster recorder and sim, see docs/flying.md).
+TOPICS = ("/clock", "/lander/state", "/lander/events", "/lander/demand_altitude", "/lander/throttle", "/autopilot/status")
+#: Wall seconds the sim waits for the autopilot's answer before stepping anyway (node default 1 s).
+LOCKSTEP_TIMEOUT = 60.0
+#: Agreement tolerance, relative to max(1, |value|): both paths fly the same scene, the same
+#: equations and the same control instants, and states cross the middleware as exact float64, so
+#: they should agree to round-off; 1e-9 leaves room only for the nanosecond stamp of t.
+RTOL = 1e-9
 
 
 def scene_file_for_case(spec: SweepSpec, index: int, folder: Path) -> Path:
-    """Write the dispersed scene (initial state only) as YAML into ``folder``; return its path."""
-    scene0 = nominal_scene(spec)
-    case = draw_case(spec, index, scene0.vehicle.n_thrusters)
-    bad = [name for name, on in (
-        ("mass_error", case.mass_error != 0.0), ("inertia_error", case.inertia_error != 0.0),
-        ("thrust_error", any(e != 0.0 for e in case.thrust_error)), ("thruster_failure", case.failed_thruster >= 0),
-    ) if on]
-    if bad:
-        raise NotRepresentable(
-            f"flight {index} uses dispersions.{', dispersions.'.join(bad)}, which the ROS path "
-            "(scene file + timeline) cannot carry yet; --replay without --record flies it core-only"
-        )
-    if scene0.attitude != "quaternion" or scene0.source is None:
-        raise NotRepresentable(f"scene {scene0.name!r}: only quaternion-mode packaged scene files are supported")
-    y = apply_case(scene0, case).initial_state
-    data = yaml.safe_load(Path(scene0.source).read_text())
-    data["name"] = f"{scene0.name}-sweep-{spec.seed}-{index}"
-    data["aliases"] = []
-    data["initial"] = {
-        "position_W": [float(x) for x in y[R_W]],
-        "velocity_W": [float(x) for x in y[V_W]],
-        "attitude": {"quaternion": [float(x) for x in y[ATT]]},
-        "omega_B": [float(x) for x in y[OMEGA_B]],
-        "fuel": float(y[FUEL]),
-    }
-    path = folder / f"{data['name']}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
+    """Write flight ``index``'s scene as YAML into ``folder``; return its path."""
+    case = draw_case(spec, index, nominal_scene(spec).vehicle.n_thrusters)
+    return write_case_scene(spec, case, folder)
 
 
-def plan_for_case(spec: SweepSpec, controller_index: int, index: int, folder: Path, record: Path | None) -> Any:
+def plan_for_case(
+    spec: SweepSpec, controller_index: int, index: int, folder: Path, record: Path | None,
+    topics: tuple[str, ...] | None = None,
+) -> Any:
     """A :class:`lander_tools.launcher.FlightPlan` flying case ``index`` in lockstep, as fast as possible."""
     from lander_tools.launcher import Action, FlightPlan
 
+    from lander_tools.sweep.case_scene import gust_seed
+
     scene0 = nominal_scene(spec)
     case = draw_case(spec, index, scene0.vehicle.n_thrusters)
-    scene_path = scene_file_for_case(spec, index, folder)
-    period = scene0.dt if spec.control_rate is None else 1.0 / spec.control_rate
-    n = int(math.floor(spec.end.duration / period + 1e-9))
-    h0 = base_demand_altitude(scene0)
-    timeline = [Action(0.0, "demand_altitude", max(0.0, h0))]
-    if case.demand_step:
-        timeline.append(Action(spec.end.demand_step_time, "demand_altitude", max(0.0, h0 + case.demand_step)))
-    winds = wind_schedule(scene0, case, spec.end.gust_time_constant, period, n)
-    if winds is not None:
-        constant = bool(np.all(winds == winds[0]))
-        for k in range(1 if constant else n):
-            timeline.append(Action(k * period, "wind", [float(w) for w in winds[k]]))
+    scene_path = write_case_scene(spec, case, folder)
+    _, period = control_period(spec, scene0.dt)
+    before, after, t_change = demand_schedule(spec, scene0, case)
+    timeline = [Action(0.0, "demand_altitude", before)]
+    if after != before:
+        # One period early: the launcher publishes on the state *before* the step, so the demand is
+        # in the autopilot's queue when the state at the step arrives (published at the step's own
+        # state it races that state's answer and usually lands one period late; docs/sweeps.md).
+        timeline.append(Action(max(0.0, t_change - period), "demand_altitude", after))
     choice = spec.controllers[controller_index]
+    seed = gust_seed(case) if case.wind_gust else (scene0.gust.seed if scene0.gust is not None else 0)
     return FlightPlan(
         scene=str(scene_path), controller=choice.name, controller_params=dict(choice.params),
-        duration=spec.end.duration, speed=0.0, lockstep=True, record=record,
-        timeline=sorted(timeline, key=lambda a: a.t),
+        duration=spec.end.duration, speed=0.0, lockstep=True, record=record, topics=topics,
+        sim_params={"publish_rate": 1.0 / period, "seed": seed, "lockstep_timeout": LOCKSTEP_TIMEOUT},
+        autopilot_params={"scene": str(scene0.source)},
+        timeline=timeline,
         meta={"sweep": spec.name, "seed": str(spec.seed), "flight": str(index), "controller": choice.label},
     )
+
+
+def row_from_bag(spec: SweepSpec, controller_index: int, index: int, bag_path: Path) -> dict[str, Any]:
+    """The flight's row computed from its bag with the core-only definitions (:mod:`.metrics`).
+
+    States: the flight after the last reset, one per control instant (the resume republishes the
+    t = 0 state: the last one per instant is kept), up to the first state no longer flying or the
+    end. Saturation: ``/autopilot/status`` of the answers to those states. Touchdown speed: the
+    LANDED/CRASHED event's ``hypot(descent_rate, ground_speed)``.
+    """
+    from lander_tools.analysis import EV_CRASHED, EV_LANDED, Flight
+    from lander_tools.bagio import read_bag
+
+    scene0 = nominal_scene(spec)
+    case = draw_case(spec, index, scene0.vehicle.n_thrusters)
+    _, period = control_period(spec, scene0.dt)
+    before, after, t_change = demand_schedule(spec, scene0, case)
+    bag = read_bag(bag_path)
+    f = Flight.from_bag(bag)
+    n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
+    # One state per control instant k: the last published for it (k from the stamp, to the ns).
+    ks = np.rint(f.t / period).astype(int)
+    last: dict[int, int] = {}
+    for j, k in enumerate(ks):
+        if 0 <= k <= n_ctrl:
+            last[int(k)] = j
+    ts, errs, tilts, rates, fuel = [], [], [], [], []
+    terminal = "ok"
+    for k in sorted(last):
+        j = last[k]
+        t = k * period
+        h, tilt = altitude_and_tilt(f.r_W[j], f.q[j])
+        ts.append(t)
+        errs.append(h - (after if t >= t_change else before))
+        tilts.append(tilt)
+        rates.append(float(np.linalg.norm(f.omega_B[j])))
+        fuel.append(float(f.fuel[j]))
+        if f.phase[j] != 0:
+            terminal = "crashed" if f.phase[j] == 2 else "landed"
+            break
+    t_last = ts[-1]
+    # Controller updates happen at every instant flown except the last one recorded.
+    sat = 0
+    if f.status_t.size:
+        st_k = np.rint(f.status_t / period).astype(int)
+        by_k: dict[int, bool] = {}
+        for k, s in zip(st_k, f.status_saturated):
+            by_k[int(k)] = bool(s)
+        sat = sum(1 for k, s in by_k.items() if s and k * period < t_last - 1e-9)
+    touchdown = math.nan
+    for _t, kind, _detail, values in f.events:
+        if kind in (EV_LANDED, EV_CRASHED) and len(values) >= 3:
+            touchdown = math.hypot(values[1], values[2])
+    samples = Samples(
+        t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
+        fuel_start=fuel[0], fuel_end=fuel[-1], saturated_updates=sat, period=period, touchdown_speed=touchdown,
+        terminal=terminal, t_change=t_change,
+    )
+    return make_row(spec, controller_index, index, case, samples)
+
+
+@dataclass
+class RosCheck:
+    """The through-ROS sample: rows of both paths, disagreements, timing."""
+
+    core_rows: list[dict[str, Any]]
+    ros_rows: list[dict[str, Any]]
+    mismatches: list[str] = field(default_factory=list)
+    #: Flights that differ only because the autopilot applied the demand step at another instant.
+    demand_timing: list[str] = field(default_factory=list)
+    ros_wall: float = 0.0  # [s] wall time of the flights through ROS (start-up included)
+    core_wall: float = 0.0  # [s] wall time of the same flights core-only, one process
+    outcomes: list[str] = field(default_factory=list)
+
+    @property
+    def agree(self) -> bool:
+        return not self.mismatches and bool(self.ros_rows)
+
+    def summary(self) -> str:
+        n = len(self.ros_rows)
+        ros_fps = n / self.ros_wall if self.ros_wall > 0 else math.nan
+        core_fps = n / self.core_wall if self.core_wall > 0 else math.nan
+        head = (
+            f"through ROS: {n} flight(s) in {self.ros_wall:.1f} s = {ros_fps:.3f} flights/s "
+            f"(core-only, same flights, 1 process: {core_fps:.2f} flights/s, {core_fps / ros_fps:.0f}x faster); "
+        )
+        n_timing = len(self.demand_timing)
+        if self.agree:
+            text = head + f"metrics of {n - n_timing}/{n} agree with core-only (relative tolerance {RTOL:g})"
+            if n_timing:
+                text += (f"; {n_timing} differ only by the instant the autopilot node applied the demand step "
+                         "(they agree with core-only flown with that instant):\n  " + "\n  ".join(self.demand_timing))
+            return text
+        return head + "DISAGREEMENT:\n  " + "\n  ".join(self.mismatches)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"flights": len(self.ros_rows), "ros_wall_s": self.ros_wall, "core_wall_s": self.core_wall,
+                "agree": self.agree, "rtol": RTOL, "mismatches": self.mismatches, "demand_timing": self.demand_timing,
+                "launcher": self.outcomes,
+                "ros_rows": self.ros_rows}
+
+
+def compare_rows(core: dict[str, Any], ros: dict[str, Any], metrics: tuple[str, ...], rtol: float = RTOL) -> list[str]:
+    """Differences between a core-only and a through-ROS row (outcome, then each metric)."""
+    where = f"flight {core['index']} ({core['controller']})"
+    out = []
+    if core["outcome"] != ros["outcome"]:
+        out.append(f"{where}: outcome core-only {core['outcome']!r}, through ROS {ros['outcome']!r}")
+    for m in metrics:
+        a, b = float(core[m]), float(ros[m])
+        if math.isnan(a) and math.isnan(b):
+            continue
+        if not abs(a - b) <= rtol * max(1.0, abs(a)):
+            out.append(f"{where}: {m} core-only {a!r}, through ROS {b!r} (difference {b - a:.3g})")
+    return out
+
+
+def _demand_instant(spec: SweepSpec, ci: int, i: int, ros: dict[str, Any]) -> int | None:
+    """The demand-step shift (control periods, +-1 or +-2) with which core-only reproduces ``ros``, or None."""
+    from lander_tools.sweep.flight import fly_case
+
+    case = draw_case(spec, i, nominal_scene(spec).vehicle.n_thrusters)
+    if not case.demand_step:
+        return None
+    for delay in (1, -1, 2, -2):
+        if not compare_rows(fly_case(spec, ci, i, demand_delay=delay).row, ros, spec.metrics):
+            return delay
+    return None
+
+
+def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str, Any]] | None = None,
+                out: Any = None) -> RosCheck:
+    """Fly flights ``0..n-1`` (every controller) through the nodes, record each into ``folder``,
+    compute their rows from the bags and compare with the core-only rows (flown here if not given)."""
+    import io
+
+    from lander_tools import launcher
+    from lander_tools.sweep.flight import fly_case
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    work = [(ci, i) for i in range(n) for ci in range(len(spec.controllers))]
+    t0 = time.perf_counter()
+    fresh = [fly_case(spec, ci, i).row for ci, i in work]
+    core_wall = time.perf_counter() - t0
+    if core_rows is not None:
+        by = {(r["controller_index"], r["index"]): r for r in core_rows}
+        fresh = [by.get((ci, i), row) for (ci, i), row in zip(work, fresh)]
+    check = RosCheck(core_rows=fresh, ros_rows=[], core_wall=core_wall)
+    for (ci, i), core in zip(work, fresh):
+        bag = folder / f"flight-{i}-{spec.controllers[ci].label}"
+        plan = plan_for_case(spec, ci, i, folder, bag, topics=TOPICS)
+        log = io.StringIO()
+        w0 = time.perf_counter()
+        result = launcher.fly(plan, out=log if out is None else out)
+        check.ros_wall += time.perf_counter() - w0
+        check.outcomes.append(launcher.summary(result))
+        if result.outcome not in ("time-limit", "landed", "crashed"):
+            check.mismatches.append(f"flight {i}: the ROS flight failed: {launcher.summary(result)}\n{log.getvalue()[-2000:]}")
+            continue
+        ros = row_from_bag(spec, ci, i, bag)
+        check.ros_rows.append(ros)
+        diffs = compare_rows(core, ros, spec.metrics)
+        if diffs:
+            late = _demand_instant(spec, ci, i, ros)
+            if late is not None:
+                check.demand_timing.append(f"flight {i} ({spec.controllers[ci].label}): demand step applied {late:+d} "
+                                           "control period(s) from schedule")
+                continue
+        check.mismatches += diffs
+    return check

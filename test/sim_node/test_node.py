@@ -74,6 +74,17 @@ def _paused_state(probe: Probe):
     return probe.states[-1]
 
 
+def _accepted_after(probe: Probe, action) -> None:
+    """Do ``action`` (publishing commands) and wait until the node has accepted one more command.
+
+    Topics and services are separate channels, and pausing publishes nothing new (one state per
+    instant), so the node's own count in the diagnostics says when the command is in force.
+    """
+    n0 = int(probe.diag_after(len(probe.diagnostics))["commands_accepted"])
+    action()
+    probe.wait_for(lambda: int(probe.diagnostics[-1]["commands_accepted"]) > n0, 10.0, "the command to be accepted")
+
+
 def _run_lockstep(probe: Probe, throttles: list[float], sim_seconds: float) -> list:
     """Fly in lockstep, answering every state with ``throttles``, for ``sim_seconds``; return the states."""
     probe.set_params(lockstep=True, speed=0.0)
@@ -190,15 +201,9 @@ def test_step_advances_exactly_n_dt_and_reset_restores_the_initial_state_bit_for
     after = probe.states[-1]
     assert after.position.z != s0.position.z, "gravity must have moved the lander"
     # Now disturb everything the node holds: throttles, wind, stabiliser, more steps.
-    probe.send_throttles([0.3, 0.6, 0.1, 0.9])
     probe.send_wind(5.0, -2.0, 1.0)
+    _accepted_after(probe, lambda: probe.send_throttles([0.3, 0.6, 0.1, 0.9]))
     probe.call("set_stabiliser", SetBool.Request(data=True))
-    # Topics and services are separate channels: poll (pause republishes the state) until applied.
-    probe.wait_for(
-        lambda: list(probe.latest_state_after(lambda: probe.call("pause")).throttles) == [0.3, 0.6, 0.1, 0.9],
-        10.0,
-        "the throttle command to be applied",
-    )
     res = probe.call("step", StepSimulation.Request(steps=37))
     assert res.success and res.sim_time == 137 * dt
     probe.wait_for(lambda: state_ns(probe.states[-1]) == round(137 * dt * 1e9), 10.0, "the state stamped 137 dt")
@@ -293,13 +298,8 @@ def test_a_held_command_goes_stale_after_the_limit_and_throttles_drop_to_zero(pr
     _load(probe, scenes["vertical"])
     limit, period = 0.1, 1.0 / 50.0
     probe.set_params(command_timeout=limit)
-    probe.send_throttles([1.0, 1.0, 1.0, 1.0])
-    probe.wait_for(
-        lambda: list(probe.latest_state_after(lambda: probe.call("pause")).throttles) == [1.0] * 4,
-        10.0,
-        "the command to be applied",
-    )
-    t_cmd = state_ns(probe.states[-1]) * 1e-9  # paused: the command was accepted at this sim time
+    _accepted_after(probe, lambda: probe.send_throttles([1.0, 1.0, 1.0, 1.0]))
+    t_cmd = float(probe.diagnostics[-1]["sim_time"])  # paused: the command was accepted at this sim time
     n_events = len(probe.events)
     probe.call("resume")
     stale = lambda: [e for e in probe.events[n_events:] if e.kind == FlightEvent.COMMAND_STALE]  # noqa: E731
@@ -328,3 +328,71 @@ def test_lockstep_waits_for_the_answer_and_counts_a_timeout(probe, scenes):
     assert waited >= 0.3 - 0.05  # 50 ms: the resume call's own round trip happens inside the wait
     d1 = _diag_when_paused(probe)
     assert int(d1["lockstep_timeouts"]) > int(d0["lockstep_timeouts"])
+
+
+def test_one_state_per_instant_sequences_and_stamps_strictly_increase_within_a_reset(probe, scenes):
+    """Reset publishes state 1 at t = 0; pause and resume publish nothing; step and running add one
+    state per new instant. So within a reset epoch (sequence, stamp) pairs never repeat and both
+    strictly increase: a (sequence -> sim time) map is well defined for latency and lockstep."""
+    _load(probe, scenes["vertical"])
+    first = len(probe.states)
+    s0 = probe.latest_state_after(lambda: probe.call("reset", Reset.Request()))
+    assert (s0.sequence, state_ns(s0)) == (1, 0)
+    probe.call("step", StepSimulation.Request(steps=3))
+    probe.call("pause")
+    probe.call("resume")
+    probe.wait_for(lambda: state_ns(probe.states[-1]) >= 0.5e9, 10.0, "0.5 s of flight")
+    probe.call("pause")
+    probe.call("resume")
+    probe.call("pause")
+    last = _paused_state(probe)
+    epoch = [s for s in list(probe.states)[first:] if s is s0 or s.sequence > 0]
+    epoch = epoch[[i for i, s in enumerate(epoch) if s.sequence == 1][-1]:]
+    seqs = [s.sequence for s in epoch]
+    stamps = [state_ns(s) for s in epoch]
+    assert seqs == list(range(1, last.sequence + 1)), "a state is missing or repeated"
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), "two states share a sim time"
+
+
+def test_pause_at_speed_0_in_lockstep_takes_effect_within_a_control_period(probe, scenes):
+    """In lockstep the sim is never more than one control period ahead of its controller (this
+    probe), so the time the probe last saw is the sim's to within one period. The pause must stop
+    the sim at most one period after that (the tick in progress may finish), i.e. requests are
+    served between control periods even when running as fast as possible. Repeated at several
+    instants; period 0.02 s (50 Hz over dt = 0.01: two physics steps per tick)."""
+    _load(probe, scenes["vertical"])
+    probe.set_params(lockstep=True, speed=0.0, lockstep_timeout=5.0)
+    period = 0.02
+    probe.answer = lambda state: [0.25] * 4
+    probe.call("reset", Reset.Request())
+    for _ in range(5):
+        probe.call("resume")
+        n0 = len(probe.states)
+        probe.wait_for(lambda: len(probe.states) > n0 + 50, 30.0, "50 lockstep periods")
+        seen = state_ns(probe.states[-1]) * 1e-9
+        probe.call("pause")
+        t_paused = float(_diag_when_paused(probe)["sim_time"])
+        assert seen - 1e-9 <= t_paused <= seen + 2 * period + 1e-9, (seen, t_paused)
+    probe.answer = None
+    probe.set_params(lockstep=False, lockstep_timeout=1.0)
+
+
+def test_control_loop_latency_is_reported_from_the_answers_sequence_numbers(probe, scenes):
+    """Every answered state gives one sample: state published -> command with its sequence accepted.
+    The probe answers from its callback, so the latency is positive and well under the lockstep
+    timeout (no timeout was counted); p50 <= p95 by definition."""
+    _load(probe, scenes["vertical"])
+    probe.set_params(lockstep=True, speed=0.0, lockstep_timeout=5.0)
+    d0 = probe.diag_after(len(probe.diagnostics))
+    probe.answer = lambda state: [0.25] * 4
+    probe.call("reset", Reset.Request())
+    probe.call("resume")
+    probe.wait_for(lambda: state_ns(probe.states[-1]) >= 2e9, 30.0, "2 s of lockstep flight")
+    probe.call("pause")
+    probe.answer = None
+    d1 = _diag_when_paused(probe)
+    probe.set_params(lockstep=False, lockstep_timeout=1.0)
+    assert int(d1["lockstep_timeouts"]) == int(d0["lockstep_timeouts"])
+    assert int(d1["control_latency_samples"]) >= 100  # >= 2 s at 50 Hz, every state answered
+    p50, p95 = float(d1["control_latency_p50_ms"]), float(d1["control_latency_p95_ms"])
+    assert 0.0 < p50 <= p95 < 5000.0, (p50, p95)

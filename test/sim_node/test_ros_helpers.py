@@ -99,3 +99,22 @@ def test_pacer_schedules_ticks_at_the_real_time_factor():
     now[0] = 1.0  # far behind (> max_lag = 0.1 s): re-anchor instead of racing
     assert p.wait_time(0.06) == 0.0 and p.overruns == 1
     assert Pacer(speed=0.0, period=0.02, clock=lambda: 0.0).wait_time(5.0) == 0.0
+
+
+def test_the_per_tick_readout_agrees_with_the_cores_derived_quantities():
+    """The node computes altitude, climb rate, ground speed, mass, Euler angles and the gimbal flag
+    itself (cheaper than Simulation.derived()); same definitions, so equal to rounding (1e-9 m/s,
+    1e-6 m at 3.4e6 m: a few ulps)."""
+    from lander_sim.ros.sim_adapter import build_simulation
+
+    for scene in ("hover", "free-spin", "gimbal-lock-close"):
+        sim = build_simulation(scene)
+        sim.set_throttles([0.3] * sim.vehicle.n_thrusters)
+        for _ in range(5):
+            sim.step(7)
+            r, d = sim.readout(), sim.sim.derived()
+            assert abs(r.altitude - d.altitude) <= 1e-6
+            assert abs(r.climb_rate - d.climb_rate) <= 1e-9
+            assert abs(r.ground_speed - d.ground_speed) <= 1e-9
+            assert r.mass == d.mass and r.gimbal_lock == d.gimbal_lock
+            np.testing.assert_array_equal(r.euler, d.euler)

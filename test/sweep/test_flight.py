@@ -10,18 +10,21 @@ import pytest
 from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_tools.sweep.dispersion import FlightCase
-from lander_tools.sweep.flight import _settling_time, apply_case, fly_case, nominal_scene
+from lander_tools.sweep.case_scene import flown_scene, nominal_scene
+from lander_tools.sweep.flight import fly_case
+from lander_tools.sweep.metrics import settling_time as _settling_time
 from lander_tools.sweep.spec import parse_spec
 
 from .conftest import SMALL
 
 
-def test_apply_case_moves_exactly_what_the_case_says(small_spec):
+def test_the_flown_scene_moves_exactly_what_the_case_says(small_spec):
     scene = nominal_scene(small_spec)
     case = FlightCase(index=0, seed=0, tilt=0.2, tilt_azimuth=1.0, altitude_offset=12.5,
                       velocity_W=(0.1, -0.2, 0.3), body_rate_B=(0.01, 0.0, -0.02), mass_error=0.05,
-                      inertia_error=-0.1, thrust_error=(0.01, -0.02, 0.03, 0.0))
-    flown = apply_case(scene, case)
+                      inertia_error=-0.1, thrust_error=(0.01, -0.02, 0.03, 0.0), wind_mean_W=(1.0, 2.0, -3.0),
+                      wind_gust=0.7, failed_thruster=2, failure_time=12.5)
+    flown = flown_scene(small_spec, case)
     y0, y1 = scene.initial_state, flown.initial_state
     # Geometry identities, exact up to rounding (1e-12 on O(1) and 1e-6 m on 3.4e6 m radii).
     assert np.linalg.norm(y1[0:3]) - np.linalg.norm(y0[0:3]) == pytest.approx(12.5, abs=1e-6)
@@ -37,6 +40,10 @@ def test_apply_case_moves_exactly_what_the_case_says(small_spec):
     assert [t.max_thrust for t in v1.thrusters] == pytest.approx(
         [t.max_thrust * (1 + e) for t, e in zip(v0.thrusters, case.thrust_error)], rel=1e-15)
     assert scene.initial_state is not flown.initial_state and y0[0] == nominal_scene(small_spec).initial_state[0]
+    # Wind and failure are carried by the scene (the simulator node flies the same scene file).
+    assert flown.wind_W == tuple(np.add(scene.wind_W, case.wind_mean_W))
+    assert flown.gust.sigma == 0.7 and flown.gust.tau == small_spec.end.gust_time_constant
+    assert [(f.thruster, f.time) for f in flown.thruster_failures] == [(2, 12.5)]
 
 
 def test_failed_thruster_is_off_from_its_failure_time():
@@ -96,17 +103,10 @@ def test_comparison_flies_both_controllers_on_the_same_case(small_spec):
     assert a["fuel_used"] != b["fuel_used"]  # different laws, different flights
 
 
-def test_gusts_have_the_specified_stationary_std():
-    from lander_tools.sweep.flight import wind_schedule
-
-    scene = nominal_scene(parse_spec(SMALL))
-    case = FlightCase(index=3, seed=9, wind_gust=0.8, wind_mean_W=(1.0, 0.0, -2.0))
-    w = wind_schedule(scene, case, tau=2.0, period=0.1, n=20000)
-    g = w - (np.asarray(scene.wind_W) + np.asarray(case.wind_mean_W))
-    # 20000 samples 0.1 s apart with correlation time 2 s are worth ~N/(2 tau/period) = 500
-    # independent ones: the sample std has relative std 1/sqrt(2 * 500) = 3.2 %, and 3 axes
-    # pooled shrink it further; 4 of those (13 %) is a generous but not a loose bound.
-    assert np.allclose(g.std(axis=0), 0.8, rtol=0.13)
-    # Lag of one correlation time (20 periods): autocorrelation exp(-1) for a Gauss-Markov process.
-    rho = np.mean([np.corrcoef(g[:-20, i], g[20:, i])[0, 1] for i in range(3)])
-    assert rho == pytest.approx(math.exp(-1.0), abs=0.1)  # ~2.5 std of the estimate with N_eff = 1500
+def test_gusts_come_from_the_core_model_seeded_by_the_flight(small_spec):
+    # The sweep keeps no gust process of its own: the flown scene's GustProcess (tested for its
+    # statistics in test/physics/test_wind.py) is seeded from (master seed, index) alone.
+    c1 = FlightCase(index=3, seed=9, wind_gust=0.8)
+    a, b = flown_scene(small_spec, c1), flown_scene(small_spec, c1)
+    other = flown_scene(small_spec, dataclasses.replace(c1, index=4))
+    assert a.gust == b.gust and a.gust.seed != other.gust.seed

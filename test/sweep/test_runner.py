@@ -27,7 +27,7 @@ def test_parallel_equals_serial(parallel, small_spec):
 
 def test_three_flights_replayed_alone_are_bit_identical(parallel, small_spec):
     # Empty the per-process caches first: "alone" means from scratch, as `--replay` would.
-    flight._SCENES.clear()
+    flight.clear_caches()
     flight._CONTROLLERS.clear()
     picks = [1, 3, 5]
     alone = [flight.fly_case(small_spec, 0, i).row for i in reversed(picks)][::-1]

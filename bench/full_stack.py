@@ -1,0 +1,278 @@
+"""Benchmark: sustained speed of the full stack (sim + autopilot + recorder) flying scenario 7.
+
+Each variant is one real ``lander fly`` (the user's command, in a subprocess) at speed 0
+(as fast as possible) in lockstep, recording ``/clock``, ``/lander/state``, ``/lander/throttle``,
+``/autopilot/status`` and ``/diagnostics``:
+
+* ``multi-process``: sim and autopilot in their own processes, the recorder in the launcher's;
+* ``composed`` (``--compose``): sim and autopilot in one process and one executor.
+
+Figures, all over the flying part (from the state after the reset to the flight's end time):
+
+* achieved real-time factor: sim seconds per wall second, from the recorder's receive times;
+* control-loop latency: recorder receive time of the command answering state N minus that of
+  state N (both wall clock, one process): publish of the state -> controller -> command on the wire;
+* CPU per process (``/proc/<pid>/stat`` utime + stime, sampled every 0.1 s) in % of one core
+  over the same window, and peak RSS (``/proc/<pid>/status``);
+* messages lost: state sequence numbers missing from the bag, states (before the end) without
+  their command, and the sim's ``lockstep_timeouts`` (a command that did not come in time).
+
+    python bench/full_stack.py [--json F] [--quick] [--scene hover] [--duration S]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:  # `python bench/full_stack.py` from a source checkout
+    sys.path.insert(0, str(REPO))
+
+#: What the benchmark records: the control loop and what it needs to measure it.
+TOPICS = ("/clock", "/lander/state", "/lander/throttle", "/autopilot/status", "/diagnostics")
+_CLK_TCK = os.sysconf("SC_CLK_TCK")
+_PID_LINE = re.compile(r"pids (.*)$")
+
+
+# --- /proc readers (no psutil) ----------------------------------------------------------------
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time [s] of process ``pid`` so far, or None once it is gone.
+
+    ``/proc/<pid>/stat``: the command name (field 2) may contain spaces, so fields are counted
+    after its closing parenthesis; utime and stime are fields 14 and 15, in clock ticks.
+    """
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError, PermissionError):
+        return None
+    rest = text[text.rindex(")") + 2:].split()
+    return (int(rest[11]) + int(rest[12])) / _CLK_TCK  # fields 14, 15 (rest starts at field 3)
+
+
+def rss_bytes(pid: int) -> int | None:
+    """Resident set size [bytes] of process ``pid`` (``VmRSS`` of ``/proc/<pid>/status``), or None."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    except (FileNotFoundError, ProcessLookupError, PermissionError):
+        return None
+    return None
+
+
+@dataclass
+class ProcSeries:
+    """Samples of one process: wall time [s, time.time()], CPU seconds, RSS [bytes]."""
+
+    wall: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+    rss: list[int] = field(default_factory=list)
+
+    def cpu_percent(self, w0: float, w1: float) -> float:
+        """Mean CPU use over wall window [w0, w1] in % of one core (interpolated samples)."""
+        if len(self.wall) < 2 or w1 <= w0:
+            return float("nan")
+        c0, c1 = np.interp([w0, w1], self.wall, self.cpu)
+        return 100.0 * (c1 - c0) / (w1 - w0)
+
+    def rss_at(self, w: float) -> float:
+        return float(np.interp(w, self.wall, self.rss)) if self.wall else float("nan")
+
+
+class Sampler:
+    """Samples CPU time and RSS of named processes every ``period`` s in a background thread."""
+
+    def __init__(self, period: float = 0.1) -> None:
+        self.period = period
+        self.pids: dict[str, int] = {}
+        self.series: dict[str, ProcSeries] = {}
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def watch(self, name: str, pid: int) -> None:
+        with self._lock:
+            self.pids[name] = pid
+            self.series.setdefault(name, ProcSeries())
+
+    def sample(self) -> None:
+        now = time.time()
+        with self._lock:
+            for name, pid in self.pids.items():
+                c, r = cpu_seconds(pid), rss_bytes(pid)
+                if c is not None and r is not None:
+                    s = self.series[name]
+                    s.wall.append(now)
+                    s.cpu.append(c)
+                    s.rss.append(r)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period):
+            self.sample()
+
+    def stop(self) -> dict[str, ProcSeries]:
+        self._stop.set()
+        self._thread.join()
+        return self.series
+
+
+# --- one flight ---------------------------------------------------------------------------------
+
+
+@dataclass
+class LoopFigures:
+    """What a recorded lockstep flight says about its control loop (see the module docstring)."""
+
+    sim_s: float
+    wall_s: float
+    rtf: float
+    states: int
+    states_missing: int
+    commands_missing: int
+    lockstep_timeouts: int | None
+    latency_ms_p50: float
+    latency_ms_p99: float
+    latency_ms_max: float
+    window_wall: tuple[float, float]
+
+
+def loop_figures(bag_path: Path) -> LoopFigures:
+    """Analyse the control loop of a recorded lockstep flight (``lander fly --record``)."""
+    from lander_tools.bagio import read_bag
+
+    bag = read_bag(bag_path, list(TOPICS))
+    st = bag.topics["/lander/state"]
+    seq = np.array([m.sequence for m in st.messages], dtype=np.int64)
+    t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in st.messages])
+    rx = st.t_bag_ns.astype(np.float64) * 1e-9
+    start = int(np.flatnonzero(seq == 1)[-1])  # the launcher's reset: the flight proper
+    end_t = float(bag.meta.get("end_time", t[-1]))
+    keep = np.arange(len(seq)) >= start
+    keep &= t <= end_t + 1e-9
+    seq, t, rx = seq[keep], t[keep], rx[keep]
+    missing = int(seq[-1] - seq[0] + 1 - len(np.unique(seq)))
+    answered: dict[int, float] = {}
+    thr = bag.topics.get("/lander/throttle")
+    if thr is not None:
+        for m, r in zip(thr.messages, thr.t_bag_ns):
+            answered.setdefault(int(m.state_sequence), float(r) * 1e-9)
+    # The state that ended the flight is not answered (the launcher stops the autopilot there).
+    lat = np.array([answered[s] - r for s, r in zip(seq[:-1], rx[:-1]) if s in answered])
+    commands_missing = int(len(seq) - 1 - len(lat))
+    timeouts = None
+    diag = bag.topics.get("/diagnostics")
+    if diag is not None and diag.messages:
+        for kv in diag.messages[-1].status[0].values:
+            if kv.key == "lockstep_timeouts":
+                timeouts = int(kv.value)
+    # RTF over the stepping part: from the first state at t > 0 (after reset/resume republishes).
+    moving = np.flatnonzero(t > 0.0)
+    i0 = max(int(moving[0]) - 1, 0) if len(moving) else 0
+    sim_s, wall_s = float(t[-1] - t[i0]), float(rx[-1] - rx[i0])
+    q = (lambda p: float(np.percentile(lat, p)) * 1e3) if len(lat) else (lambda p: float("nan"))
+    return LoopFigures(sim_s, wall_s, sim_s / wall_s if wall_s > 0 else float("nan"), len(seq), missing,
+                       commands_missing, timeouts, q(50), q(99), q(100), (float(rx[i0]), float(rx[-1])))
+
+
+def fly_recorded(scene: str, duration: float, compose: bool, bag: Path, env: dict[str, str] | None = None,
+                 extra: tuple[str, ...] = (), sampler: Sampler | None = None, timeout: float = 600.0) -> tuple[int, str]:
+    """Run ``lander fly SCENE --speed 0 --duration D --record BAG`` (lockstep), watching its processes.
+
+    Returns (exit code, output). Processes are registered in ``sampler`` as ``launcher+recorder``,
+    ``sim``, ``autopilot`` or ``composed`` as soon as the launcher prints their pids.
+    """
+    argv = [sys.executable, "-m", "lander_tools.cli", "fly", scene, "--speed", "0", "--duration", str(duration),
+            "--record", str(bag), "--no-progress", "--topics", *TOPICS, *(("--compose",) if compose else ()), *extra]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
+                            env=env if env is not None else os.environ.copy())
+    if sampler is not None:
+        sampler.watch("launcher+recorder", proc.pid)
+    lines: list[str] = []
+    timer = threading.Timer(timeout, proc.kill)
+    timer.start()
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+            m = _PID_LINE.search(line)
+            if m and sampler is not None:
+                for part in m.group(1).split(","):
+                    name, pid = part.split()
+                    sampler.watch(name, int(pid))
+        rc = proc.wait()
+    finally:
+        timer.cancel()
+    return rc, "".join(lines)
+
+
+def run_variant(scene: str, duration: float, compose: bool, folder: Path) -> dict:
+    bag = folder / ("composed" if compose else "multi")
+    sampler = Sampler()
+    rc, out = fly_recorded(scene, duration, compose, bag, sampler=sampler)
+    series = sampler.stop()
+    if rc != 0:
+        raise RuntimeError(f"lander fly exited with {rc}:\n{out[-3000:]}")
+    f = loop_figures(bag)
+    w0, w1 = f.window_wall
+    cpu = {name: s.cpu_percent(w0, w1) for name, s in series.items()}
+    rss = {name: max(s.rss) / 2**20 if s.rss else float("nan") for name, s in series.items()}
+    return {"variant": "composed" if compose else "multi-process", **asdict(f), "cpu_percent": cpu, "rss_mib_peak": rss}
+
+
+def format_table(rows: list[dict]) -> str:
+    names = ("launcher+recorder", "sim", "autopilot", "composed")
+
+    def cpu(r: dict) -> str:
+        return ", ".join(f"{n} {r['cpu_percent'][n]:.0f}%" for n in names if n in r["cpu_percent"])
+
+    head = (f"{'variant':<14} {'sim s':>6} {'wall s':>6} {'RTF':>6} {'lat p50':>8} {'lat p99':>8} {'lat max':>8} "
+            f"{'lost st':>7} {'lost cmd':>8} {'ls t/o':>6}  CPU per process (% of one core)")
+    out = [head, "-" * len(head)]
+    for r in rows:
+        out.append(f"{r['variant']:<14} {r['sim_s']:6.1f} {r['wall_s']:6.1f} {r['rtf']:6.1f} "
+                   f"{r['latency_ms_p50']:6.2f}ms {r['latency_ms_p99']:6.2f}ms {r['latency_ms_max']:6.2f}ms "
+                   f"{r['states_missing']:7d} {r['commands_missing']:8d} "
+                   f"{'?' if r['lockstep_timeouts'] is None else r['lockstep_timeouts']:>6}  {cpu(r)}")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    ap.add_argument("--quick", action="store_true", help="30 s of sim time per variant instead of 120 s")
+    ap.add_argument("--scene", default="hover", help="scene (default: hover, scenario 7)")
+    ap.add_argument("--duration", type=float, help="sim seconds per variant (overrides --quick)")
+    a = ap.parse_args(argv)
+    duration = a.duration or (30.0 if a.quick else 120.0)  # scenario 7 runs out of fuel at ~139 s
+    # Isolated from whatever else runs on this machine: own domain, loopback only.
+    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    with tempfile.TemporaryDirectory(prefix="full-stack-") as tmp:
+        rows = [run_variant(a.scene, duration, compose, Path(tmp)) for compose in (False, True)]
+    print(f"full stack (sim + autopilot + recorder), scene {a.scene}, {duration:g} s sim, speed 0, lockstep, "
+          f"{os.cpu_count()} cores")
+    print(format_table(rows))
+    print("latency: recorder receive time of the command answering state N minus that of state N; "
+          "lost st: state sequence gaps in the bag; lost cmd: states without their command; "
+          "ls t/o: sim's lockstep_timeouts (last diagnostics)")
+    if a.json:
+        a.json.write_text(json.dumps(rows, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""A flight's metrics and outcome from its samples at the control instants (one definition, two sources).
+
+The core-only loop (:mod:`lander_tools.sweep.flight`) and a bag recorded through the ROS nodes
+(:mod:`lander_tools.sweep.ros_path`) both reduce to :class:`Samples`, and :func:`evaluate` turns
+samples into the row's outcome and metrics, so the two paths are compared on the same
+definitions (``spec.METRICS``):
+
+* ``hover_error``: RMS of ``altitude - demand`` over the last ``end.hover_window`` seconds flown;
+* ``settling_time``: from the demand step until ``|error|`` stays within ``end.settle_band``;
+* ``saturation_time``: controller updates that saturated times the control period;
+* ``max_tilt``: largest angle between body z and the local vertical ``r_hat`` [rad].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lander_sim.physics import rotation
+from lander_sim.physics.constants import MARS_RADIUS
+
+_EZ_B = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass
+class Samples:
+    """What a flight looked like at its control instants ``t_k = k * period`` (SI, frames named).
+
+    ``t``/``altitude_error``/``tilt``/``body_rate`` hold one entry per instant flown, up to and
+    including the first state no longer flying (or the end); ``terminal`` is ``ok`` (flew to the
+    end), ``crashed``, ``landed`` or ``diverged``.
+    """
+
+    t: np.ndarray
+    altitude_error: np.ndarray  # [m]
+    tilt: np.ndarray  # [rad]
+    body_rate: np.ndarray  # |omega_B| [rad/s]
+    fuel_start: float  # [kg]
+    fuel_end: float  # [kg]
+    saturated_updates: int
+    period: float  # [s]
+    touchdown_speed: float  # [m/s], NaN without touchdown
+    terminal: str
+    t_change: float  # [s] time of the demand step (0 without one)
+
+
+def altitude_and_tilt(r_W: np.ndarray, q: np.ndarray) -> tuple[float, float]:
+    """Altitude above the Mars radius [m] and tilt of body z from the local vertical [rad]."""
+    rn = math.sqrt(float(r_W @ r_W))
+    up = rotation.body_to_world(q, _EZ_B)
+    return rn - MARS_RADIUS, math.acos(max(-1.0, min(1.0, float(up @ r_W) / rn)))
+
+
+def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
+    """``(outcome, success, metrics)`` of one flight judged by ``end`` (:class:`EndCondition`)."""
+    s = samples
+    e, t = np.asarray(s.altitude_error, dtype=float), np.asarray(s.t, dtype=float)
+    flown = float(t[-1]) if t.size else 0.0
+    window = t >= flown - end.hover_window
+    hover = float(np.sqrt(np.mean(e[window] ** 2))) if e.size else math.nan
+    max_tilt = float(np.max(s.tilt)) if len(s.tilt) else math.nan
+    outcome = s.terminal
+    if outcome == "ok":
+        if max_tilt > end.max_tilt:
+            outcome = "tipped"
+        elif not hover <= end.max_hover_error:
+            outcome = "off-target"
+    success = outcome == "ok" or (outcome == "landed" and end.allow_touchdown)
+    metrics = {
+        "touchdown_speed": s.touchdown_speed,
+        "hover_error": hover,
+        "final_altitude_error": float(e[-1]) if e.size else math.nan,
+        "settling_time": settling_time(t, e, s.t_change, end.settle_band),
+        "fuel_used": s.fuel_start - s.fuel_end if s.terminal != "diverged" else math.nan,
+        "saturation_time": s.saturated_updates * s.period,
+        "max_tilt": max_tilt,
+        "max_body_rate": float(np.max(s.body_rate)) if len(s.body_rate) else math.nan,
+        "flight_time": flown,
+    }
+    return outcome, success, metrics
+
+
+def settling_time(t: np.ndarray, e: np.ndarray, t_change: float, band: float) -> float:
+    """Time from ``t_change`` until ``|e|`` stays within ``band`` to the end; NaN if it never does."""
+    after = t >= t_change
+    if not np.any(after):
+        return math.nan
+    ta, ea = t[after], np.abs(e[after])
+    outside = np.nonzero(ea > band)[0]
+    if outside.size == 0:
+        return 0.0
+    last = int(outside[-1])
+    if last == ea.size - 1:
+        return math.nan
+    return float(ta[last + 1] - t_change)

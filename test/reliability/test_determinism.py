@@ -1,0 +1,130 @@
+"""Determinism: in lockstep the same scene, parameters, controller and seed fly the same flight,
+bit for bit, whatever the CPU load; the recorded bags carry byte-identical payloads.
+
+Why exact equality is the right tolerance: in lockstep the sim advances only on the answer to
+the state it published, every input is piecewise constant over a tick, and physics and controller
+are pure functions of (state, input) evaluated in the same order with the same IEEE-754
+operations. Wall time enters nowhere, so any difference at all, even one ulp, is a bug
+(a missed answer, a timeout, a race at start-up), never "numerical noise".
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from .stack import REPO, START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
+
+SCENE = "hover-canted"  # scenario 7 with the seed-2 canted thrusters, its own autopilot
+SEED = 7
+#: Sim seconds per flight: 300 lockstep control periods of 0.1 s, enough for the controller's
+#: transient (attitude and altitude moving, throttles varying) to be compared.
+FLIGHT_S = 30.0
+TOPICS = ("/lander/state", "/lander/throttle", "/autopilot/status")
+
+
+def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
+    """One flight with the sim, the autopilot and a recorder as separate processes, lockstep, speed 0.
+
+    Start-up handshake (so the first tick cannot be advanced by a lockstep timeout): the sim starts
+    paused; once everyone is discovered it is reset, and resumed only after its diagnostics show
+    that it accepted the autopilot's answer to state 1 (both directions of the loop matched).
+    """
+    stack.sim(scene=SCENE, speed=0.0, lockstep=True, lockstep_timeout=5.0, start_paused=True, seed=SEED,
+              diagnostics_rate=20.0)
+    stack.autopilot(scene=SCENE, use_sim_time=True)
+    stack.recorder(bag, TOPICS)
+    # watch + autopilot + recorder on the state; watch + sim + recorder on the command.
+    watch.wait_graph({"/lander/state": 3, "/lander/throttle": 3, "/autopilot/status": 2},
+                     {"/lander/throttle": 2}, services=("reset", "resume"))
+    for _attempt in range(5):
+        n_thr = len(watch.throttles)
+        assert watch.call("reset").success
+        try:
+            watch.wait_for(lambda: any(c.state_sequence == 1 for c in watch.throttles[n_thr:]), 3.0,
+                           "the autopilot's answer to state 1")
+            watch.wait_for(lambda: int(watch.latest_diag().get("commands_accepted", 0)) > 0, 3.0,
+                           "the sim accepting a command")
+            break
+        except TimeoutError:
+            continue  # a side not matched yet: reset again (state 1 is republished)
+    else:
+        raise AssertionError("the loop sim -> autopilot -> sim never closed after 5 resets")
+    n0 = len(watch.states)
+    assert watch.call("resume").success
+    watch.wait_for(lambda: any(stamp_s(s.header.stamp) >= FLIGHT_S for s in watch.states[n0:]), START_TIMEOUT,
+                   f"t >= {FLIGHT_S} s")
+    stack.check_alive()
+    diag = watch.latest_diag()
+    # Autopilot first: in lockstep the sim then waits instead of running on.
+    assert stack.stop("autopilot") == 0
+    assert stack.stop("sim") == 0
+    assert stack.stop("recorder") == 0
+    assert diag["lockstep_timeouts"] == "0", diag
+
+
+def _flight(bag: Path) -> dict[str, list[bytes]]:
+    """Raw payloads of the flight proper: states after the last reset up to FLIGHT_S, their answers."""
+    msgs = raw_messages(bag)
+    states = msgs["/lander/state"]
+    start = max(i for i, (_, m) in enumerate(states) if m.sequence == 1)
+    states = [(r, m) for r, m in states[start:] if stamp_s(m.header.stamp) <= FLIGHT_S]
+    seqs = {m.sequence for _, m in states}
+    np.testing.assert_array_equal(sorted(seqs), np.arange(1, len(states) + 1))  # nothing lost
+    # The state that reaches FLIGHT_S may be the last one (`lander fly` stops the autopilot there).
+    asked = {m.sequence for _, m in states if stamp_s(m.header.stamp) < FLIGHT_S - 1e-9}
+    answers = [(r, m) for r, m in msgs["/lander/throttle"] if m.state_sequence in asked]
+    assert sorted(m.state_sequence for _, m in answers) == sorted(asked), "every state answered exactly once"
+    status = [(r, m) for r, m in msgs["/autopilot/status"] if m.steps > 0 and stamp_s(m.header.stamp) <= FLIGHT_S]
+    # Status: every field but last_error, whose start-up warning quotes wall-clock seconds.
+    status_fields = [(m.header.stamp.sec, m.header.stamp.nanosec, m.controller, m.saturated, m.steps, m.rejected,
+                      m.throttles.tobytes()) for _, m in status]
+    return {"state": [r for r, _ in states], "throttle": [r for r, _ in answers], "status": status_fields}
+
+
+def test_two_lockstep_flights_under_cpu_load_are_bit_identical(stack: Stack, watch: Watch, tmp_path: Path,
+                                                                busy_core: subprocess.Popen) -> None:
+    flights = []
+    for k in range(2):
+        bag = tmp_path / f"run{k}"
+        _fly_lockstep(stack, watch, bag)
+        flights.append(_flight(bag))
+    a, b = flights
+    assert len(a["state"]) >= FLIGHT_S / 0.1  # one state per 0.1 s control period
+    for topic in ("state", "throttle"):
+        assert len(a[topic]) == len(b[topic])
+        first = next((i for i, (x, y) in enumerate(zip(a[topic], b[topic])) if x != y), None)
+        assert first is None, f"{topic} payloads differ from message {first} on"
+    # The autopilot's status too, except the wall-clock text of start-up warnings (see docs/reliability.md).
+    assert a["status"] == b["status"]
+
+
+def _fly_cli(bag: Path, compose: bool) -> None:
+    rc, out = bench.fly_recorded(SCENE, FLIGHT_S, compose, bag, timeout=180.0)
+    assert rc == 0, out
+
+
+@pytest.mark.xfail(strict=True, reason="lander fly resets and resumes the sim before sim and autopilot have "
+                   "matched each other: the first states go unanswered and lockstep times out; reported")
+def test_lander_fly_lockstep_answers_every_state_from_the_first(tmp_path: Path, busy_core: subprocess.Popen) -> None:
+    """The user's path (``lander fly``, multi-process): a loss at start-up would make flights differ."""
+    for k in range(2):
+        bag = tmp_path / f"fly{k}"
+        _fly_cli(bag, compose=False)
+        f = bench.loop_figures(bag)
+        assert (f.states_missing, f.commands_missing, f.lockstep_timeouts) == (0, 0, 0), f
+
+
+def test_composed_and_multi_process_fly_the_same_flight(stack: Stack, watch: Watch, tmp_path: Path) -> None:
+    """``lander fly --compose`` (one process, one executor) flies bit for bit what separate processes fly."""
+    _fly_lockstep(stack, watch, tmp_path / "multi")
+    multi = _flight(tmp_path / "multi")
+    _fly_cli(tmp_path / "composed", compose=True)
+    composed = _flight(tmp_path / "composed")
+    for topic in ("state", "throttle"):
+        n = min(len(multi[topic]), len(composed[topic]))
+        assert n >= FLIGHT_S / 0.1
+        assert multi[topic][:n] == composed[topic][:n], topic

@@ -60,6 +60,8 @@ class AltitudeController(Controller):
     """
 
     name: ClassVar[str] = "altitude"
+    #: ``k2 = 0`` unless the ``p_only`` parameter says otherwise.
+    p_only_default: ClassVar[bool] = False
 
     def __init__(
         self,
@@ -68,7 +70,7 @@ class AltitudeController(Controller):
         poles: object = (-0.9, -1.1),
         K: object | None = None,
         design_fuel: float | None = None,
-        p_only: bool = False,
+        p_only: bool | None = None,
     ) -> None:
         super().__init__(vehicle)
         self.T_v = _check_can_hover(vehicle)
@@ -81,7 +83,7 @@ class AltitudeController(Controller):
             model = altitude_model(vehicle, fuel, 0.0)
             K = place_poles(model.A, model.B, poles_param("poles", poles, 2)).K
         self.K = matrix_param("K", K, (1, 2)).copy()
-        if p_only:
+        if self.p_only_default if p_only is None else p_only:
             self.K[0, 1] = 0.0
         # Feedback as accelerations [1/s^2, 1/s]: B K of eq 19, independent of the mass.
         self._kz = float(self.K[0, 0]) * self.T_v / self.design_mass
@@ -103,16 +105,7 @@ class AltitudePController(AltitudeController):
     """P-only variant (``k2 = 0``) of :class:`AltitudeController`: poles at ``+-j sqrt(T_v k1 / m)`` (eq 21)."""
 
     name: ClassVar[str] = "altitude-p"
-
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        poles: object = (-0.9, -1.1),
-        K: object | None = None,
-        design_fuel: float | None = None,
-    ) -> None:
-        super().__init__(vehicle, poles=poles, K=K, design_fuel=design_fuel, p_only=True)
+    p_only_default: ClassVar[bool] = True
 
 
 class IntegralAltitudeController(Controller):

@@ -41,10 +41,9 @@ class Controllability:
     def controllable(self) -> bool:
         return self.rank == self.P.shape[0]
 
-
-def controllability_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``P = [B, AB, A^2 B, ..., A^(n-1) B]`` (eq 6)."""
-    A = np.asarray(A, dtype=float)
+def check_shapes(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A`` (n x n) and ``B`` (n x m, a vector taken as one column) as float arrays; errors name the matrix."""
+    A = np.atleast_2d(np.asarray(A, dtype=float))
     B = np.asarray(B, dtype=float)
     if B.ndim == 1:
         B = B[:, None]
@@ -53,8 +52,14 @@ def controllability_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         raise DesignError(f"A must be square, got shape {A.shape}")
     if B.shape[0] != n:
         raise DesignError(f"B must have {n} rows to match A, got shape {B.shape}")
+    return A, B
+
+
+def controllability_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``P = [B, AB, A^2 B, ..., A^(n-1) B]`` (eq 6)."""
+    A, B = check_shapes(A, B)
     blocks = [B]
-    for _ in range(n - 1):
+    for _ in range(A.shape[0] - 1):
         blocks.append(A @ blocks[-1])
     return np.hstack(blocks)
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import DesignError
-from .controllability import controllability
+from .controllability import check_shapes, controllability
 
 
 @dataclass(frozen=True)
@@ -53,17 +53,6 @@ def closed_loop_poles(A: np.ndarray, B: np.ndarray, K: np.ndarray) -> np.ndarray
     return _sorted(np.linalg.eigvals(np.asarray(A) - np.asarray(B) @ np.asarray(K)))
 
 
-def _check_shapes(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    A = np.atleast_2d(np.asarray(A, dtype=float))
-    B = np.asarray(B, dtype=float)
-    if B.ndim == 1:
-        B = B[:, None]
-    n = A.shape[0]
-    if A.shape != (n, n):
-        raise DesignError(f"A must be square, got shape {A.shape}")
-    if B.shape[0] != n:
-        raise DesignError(f"B must have {n} rows to match A, got shape {B.shape}")
-    return A, B
 
 
 def place_poles(A: np.ndarray, B: np.ndarray, poles: np.ndarray | list[complex]) -> GainDesign:
@@ -76,7 +65,7 @@ def place_poles(A: np.ndarray, B: np.ndarray, poles: np.ndarray | list[complex])
     """
     import control
 
-    A, B = _check_shapes(A, B)
+    A, B = check_shapes(A, B)
     p = np.asarray(poles, dtype=complex).reshape(-1)
     if p.size != A.shape[0]:
         raise DesignError(f"poles: need {A.shape[0]} poles for a {A.shape[0]}-state model, got {p.size}")
@@ -108,7 +97,7 @@ def lqr(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> GainDesig
     """
     import control
 
-    A, B = _check_shapes(A, B)
+    A, B = check_shapes(A, B)
     n, m = B.shape
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))

@@ -82,13 +82,15 @@ def fill_throttle(cmd, state_msg, throttles: Sequence[float]) -> None:
 
 
 def fill_status(status, *, stamp, controller: str, saturated: bool, steps: int, rejected: int,
-                last_error: str, throttles: Sequence[float]) -> None:
-    """Fill an ``AutopilotStatus`` (``stamp``: sim time of the state last answered)."""
+                last_error: str, throttles: Sequence[float], state_ok: bool) -> None:
+    """Fill an ``AutopilotStatus`` (``stamp``: sim time of the state last answered;
+    ``state_ok``: a state arrived within the node's ``state_timeout``)."""
     status.header.stamp = stamp
     status.controller = controller
     status.saturated = bool(saturated)
     status.steps = int(steps)
     status.rejected = int(rejected)
+    status.state_ok = bool(state_ok)
     status.last_error = last_error
     status.throttles = [float(x) for x in throttles]
 

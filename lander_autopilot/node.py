@@ -17,14 +17,18 @@ One control step, once per state the simulator publishes (it publishes at the co
 
 Swapping the controller while flying: service ``/autopilot/switch_controller``
 (``lander_interfaces/srv/SwitchController``) or an atomic change of the parameters
-``controller`` and ``controller_params``. The new controller is built and checked first, then
-installed between two state callbacks (one executor thread), and a ``FlightEvent``
-``CONTROLLER_SWITCHED`` goes to ``/lander/events``. A refused change leaves the running controller
-flying. See docs/autopilot_node.md. No control law and no physics here.
+``controller`` and ``controller_params``. The new controller is built and checked first, in the
+service's (or parameter service's) own executor thread while the old controller keeps answering
+states in the control thread (a multi-threaded executor, one callback group each); it is then
+installed under the lock that one control step holds, so the boundary falls between two steps,
+and a ``FlightEvent`` ``CONTROLLER_SWITCHED`` goes to ``/lander/events``. python-control is
+imported and the design path warmed up in a background thread at start-up. A refused change
+leaves the running controller flying. See docs/autopilot_node.md. No control law and no physics here.
 """
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 import rclpy
@@ -33,7 +37,8 @@ from lander_interfaces.srv import SwitchController
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -67,8 +72,13 @@ _WATCHDOG_PERIOD = 0.1
 _ROS_BUILTIN = {"use_sim_time", "start_type_description_service"}
 
 
+#: Executor threads: control (states, demand, watchdog), the switch service, the parameter services.
+EXECUTOR_THREADS = 3
+
+
 class AutopilotNode(Node):
-    """The autopilot node. Build it, then spin it in a single-threaded executor."""
+    """The autopilot node. Build it, then spin it in a :class:`MultiThreadedExecutor` of
+    :data:`EXECUTOR_THREADS` threads (:func:`make_executor`) so a controller build never delays a state."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -90,18 +100,23 @@ class AutopilotNode(Node):
             build_choice(scene, controller, parse_controller_params(params_text)), Demand(altitude=_number(demand))
         )
 
-        self._pending_choice: ControllerChoice | None = None
-        self._pending_demand: float | None = None
-        self._pending_timeout: float | None = None
+        # A validated change waits here between the parameter callbacks of one set-parameters call;
+        # per thread, since the switch service and the parameter services may run concurrently.
+        self._pending = threading.local()
+        #: Held by one control step, a swap, and every status/event publication: a swap falls between steps.
+        self._lock = threading.RLock()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
 
+        control = MutuallyExclusiveCallbackGroup()  # states, demands and the watchdog, in order
         self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", _QOS)
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", _QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
-        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
-        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _QOS)
-        self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch)
+        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS, callback_group=control)
+        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _QOS, callback_group=control)
+        # Own group: a build (python-control design) runs here while states are answered.
+        self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch,
+                            callback_group=MutuallyExclusiveCallbackGroup())
 
         # Kept and refilled: no per-step construction of message objects.
         self._cmd = ThrottleCommand()
@@ -111,10 +126,26 @@ class AutopilotNode(Node):
         self._last_state_wall: float | None = None
         self._state_lost = False
         self._next_lost_report = 0.0
-        self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME),
+                          callback_group=control)
+        self._warm = threading.Thread(target=self._warm_up, args=(scene,), name="design-warm-up", daemon=True)
+        self._warm.start()
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
         )
+
+    def _warm_up(self, scene: str) -> None:
+        """Import python-control and run one design, off the executor (the first import takes
+        seconds), so the first switch to a designed controller only pays for its own design."""
+        t0 = time.monotonic()
+        try:
+            import control  # noqa: F401
+
+            build_choice(scene, "lqr", {})
+        except Exception as exc:  # noqa: BLE001 - only a warm-up: a real build reports its own errors
+            self.get_logger().debug(f"design warm-up failed: {type(exc).__name__}: {exc}")
+            return
+        self.get_logger().debug(f"python-control imported and design path warmed in {time.monotonic() - t0:.2f} s")
 
     def _declare(self, name: str, default, dynamic: bool = False):
         """Declare a parameter with its description; return its value (an override wins over the default)."""
@@ -129,6 +160,10 @@ class AutopilotNode(Node):
         if self._state_lost:
             self._state_lost = False
             self.get_logger().info(f"state received again (sequence {msg.sequence})")
+        with self._lock:
+            self._control_step(msg)
+
+    def _control_step(self, msg: LanderState) -> None:
         try:
             state = convert.state_view(msg, self.slot.choice.vehicle.n_thrusters)
             out = self.slot.step(state, msg.sequence)
@@ -165,47 +200,55 @@ class AutopilotNode(Node):
         return response
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate a change; build a new controller completely before anything is swapped."""
-        self._pending_choice = self._pending_demand = self._pending_timeout = None
+        """Validate a change; build a new controller completely before anything is swapped.
+
+        Runs in the thread of the service that sets the parameters, never the control thread:
+        the old controller answers states meanwhile.
+        """
+        pending = self._pending
+        pending.choice = pending.demand = pending.timeout = None
         new = {p.name: p.value for p in params if p.name in PARAMETER_NAMES}
         try:
             if new.keys() & CONTROLLER_PARAMETERS:
                 value = {n: new.get(n, self.get_parameter(n).value) for n in CONTROLLER_PARAMETERS}
-                self._pending_choice = build_choice(
+                pending.choice = build_choice(
                     check_string("scene", value["scene"]),
                     check_string("controller", value["controller"]),
                     parse_controller_params(value["controller_params"]),
                 )
             if "demand_altitude" in new:
-                self._pending_demand = _number(new["demand_altitude"])
-                ControllerSlot.check_demand_altitude(self._pending_demand)
+                pending.demand = _number(new["demand_altitude"])
+                ControllerSlot.check_demand_altitude(pending.demand)
             if "state_timeout" in new:
-                self._pending_timeout = check_state_timeout(new["state_timeout"])
+                pending.timeout = check_state_timeout(new["state_timeout"])
         except ValueError as exc:
-            self._pending_choice = self._pending_demand = self._pending_timeout = None
+            pending.choice = pending.demand = pending.timeout = None
             reason = str(exc)
-            self._refuse(f"refused {', '.join(sorted(new))}: {reason}", self._last_stamp)
-            self._publish_status()
+            with self._lock:
+                self._refuse(f"refused {', '.join(sorted(new))}: {reason}", self._last_stamp)
+                self._publish_status()
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
     def _after_set_parameters(self, params: list[Parameter]) -> None:
-        """Apply a validated change (same executor thread as the state callback: between two steps)."""
-        if self._pending_choice is not None:
-            choice, self._pending_choice = self._pending_choice, None
-            seq = self.slot.last_sequence
-            old = self.slot.swap(choice)
-            detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
-                      f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
-            self.get_logger().info(detail)
-            self._publish_event(FlightEvent.CONTROLLER_SWITCHED, detail, [float(seq)])
-            self._publish_status()
-        if self._pending_demand is not None:
-            self.slot.set_demand_altitude(self._pending_demand)
-            self.get_logger().info(f"demand altitude {self._pending_demand} m")
-            self._pending_demand = None
-        if self._pending_timeout is not None:
-            self._state_timeout, self._pending_timeout = self._pending_timeout, None
+        """Apply a validated change under the control lock: between two control steps."""
+        pending = self._pending
+        choice, demand, timeout = (getattr(pending, k, None) for k in ("choice", "demand", "timeout"))
+        pending.choice = pending.demand = pending.timeout = None
+        with self._lock:
+            if choice is not None:
+                seq = self.slot.last_sequence
+                old = self.slot.swap(choice)
+                detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
+                          f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
+                self.get_logger().info(detail)
+                self._publish_event(FlightEvent.CONTROLLER_SWITCHED, detail, [float(seq)])
+                self._publish_status()
+            if demand is not None:
+                self.slot.set_demand_altitude(demand)
+                self.get_logger().info(f"demand altitude {demand} m")
+            if timeout is not None:
+                self._state_timeout = timeout
 
     # --- health --------------------------------------------------------------------------------
 
@@ -221,9 +264,10 @@ class AutopilotNode(Node):
         if now >= self._next_lost_report:
             self._next_lost_report = now + self._state_timeout
             what = "no state received yet" if self._last_state_wall is None else "state lost"
-            self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
-            self.get_logger().warning(self.slot.last_error)
-            self._publish_status()
+            with self._lock:
+                self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
+                self.get_logger().warning(self.slot.last_error)
+                self._publish_status()
 
     def _refuse(self, reason: str, stamp) -> None:
         """Count, log (throttled) and announce a refused input; a repeated reason is announced once."""
@@ -240,8 +284,11 @@ class AutopilotNode(Node):
 
     def _publish_status(self) -> None:
         s = self.slot
+        last = self._last_state_wall
+        state_ok = last is not None and time.monotonic() - last <= self._state_timeout
         convert.fill_status(self._status, stamp=self._stamp(), controller=s.name, saturated=s.saturated,
-                            steps=s.steps, rejected=s.rejected, last_error=s.last_error, throttles=s.throttles)
+                            steps=s.steps, rejected=s.rejected, last_error=s.last_error, throttles=s.throttles,
+                            state_ok=state_ok)
         self._pub_status.publish(self._status)
 
     def _publish_event(self, kind: int, detail: str, values: list[float], stamp=None) -> None:
@@ -257,13 +304,18 @@ def _number(value) -> float:
     return float(value)
 
 
+def make_executor(context=None) -> MultiThreadedExecutor:
+    """The executor the node needs: one thread per callback group (control, switch, parameters)."""
+    return MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=context)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or shutdown."""
     rclpy.init(args=sys.argv if argv is None else argv)
     node = None
     try:
         node = AutopilotNode()
-        executor = SingleThreadedExecutor()  # one thread: a swap always falls between two steps
+        executor = make_executor()
         executor.add_node(node)
         executor.spin()
     except (ValueError, ParameterException) as exc:  # ConfigError, SceneError, ControllerError, DemandError

@@ -60,6 +60,8 @@ _OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, histo
 #: tick would cost a third of the speed; a pass drains everything pending (see _serve), so a
 #: request waits at most this long plus one tick.
 _BUSY_SPIN_INTERVAL = 0.001
+#: Float rounding of sim times compared against a requested instant [s].
+_TIME_EPS = 1e-9
 #: Most executor passes in one drain (a flood of inputs must not stall the simulation).
 _MAX_DRAIN_PASSES = 50
 #: Wall period [s] of re-reading the subscriber counts of the optional outputs (odometry, pose, markers).
@@ -88,9 +90,11 @@ class SimNode(Node):
 
         self.health = NodeHealth()
         self._cache_parameters()
+        self._pause_at = float(self._param("pause_at"))  # consumed (set to -1) when reached
         self._paused = bool(self._param("start_paused"))
         self._seq = 0  # sequence of the last state published since the last reset
         self._published_t: float | None = None  # sim time of that state (None: none yet since the reset)
+        self._withheld = False  # paused at pause_at: the state of the current instant is not out yet
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
         self._want_odom = self._want_pose = self._want_markers = False
         self._next_sub_check = 0.0
@@ -204,6 +208,9 @@ class SimNode(Node):
             self._check_subscribers(now)
         if self._paused:
             return _IDLE_WAIT
+        if self._pause_at >= 0.0 and self.sim.t >= self._pause_at - _TIME_EPS:
+            self._paused, self._pause_at = True, -1.0  # already there (its state is out): stay
+            return _IDLE_WAIT
         if self._lockstep and not self._answered:
             waited = now - self._await_since
             timeout = self._lockstep_timeout
@@ -217,17 +224,30 @@ class SimNode(Node):
         wait = self.pacer.wait_time(self.sim.t + self._k * self.sim.dt)
         if wait > 0.0:
             return min(wait, _IDLE_WAIT)
-        self._tick(self._k)
+        self._tick(self._k, may_pause=True)
         return 0.0
 
-    def _tick(self, n_steps: int) -> None:
-        """The pipeline of one control period: staleness -> physics -> publish."""
+    def _tick(self, n_steps: int, may_pause: bool = False) -> None:
+        """The pipeline of one control period: staleness -> physics -> publish.
+
+        With ``may_pause`` (the running loop) a tick reaching ``pause_at`` publishes /clock but
+        holds the state back and pauses: whoever drives the timeline acts at exactly this instant
+        (inputs take effect from the step leaving it, and a controller's answer to this state
+        already sees them); resume then publishes the state.
+        """
         self._check_staleness()
         w0 = time.perf_counter()
         self.sim.step(n_steps)
         self.health.step_wall_s += time.perf_counter() - w0
         self.health.physics_steps += n_steps
         self.health.ticks += 1
+        if may_pause and self._pause_at >= 0.0 and self.sim.t >= self._pause_at - _TIME_EPS:
+            self._paused, self._pause_at, self._withheld = True, -1.0, True
+            convert.fill_stamp(self._clock_msg.clock, self.sim.t)
+            self._pub_clock.publish(self._clock_msg)
+            self._publish_core_events()
+            self.get_logger().info(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
+            return
         self._publish_outputs()
 
     def _advance(self, n_steps: int, stop_on_touchdown: bool = False) -> None:
@@ -256,15 +276,18 @@ class SimNode(Node):
 
     # --- outputs -----------------------------------------------------------------------------
 
-    def _publish_outputs(self) -> None:
+    def _publish_outputs(self, clock: bool = True) -> None:
         """Publish the current instant: one state per sim time, with the next sequence number.
 
         Callers publish only after the simulation advanced or after a reset/scene load, so within
         one reset epoch sequences and stamps both strictly increase (docs/sim_node.md).
+        ``clock=False``: /clock already shows this instant (a state held back at ``pause_at``).
         """
+        self._withheld = False
         snap = self.sim.readout()
-        convert.fill_stamp(self._clock_msg.clock, snap.t)
-        self._pub_clock.publish(self._clock_msg)
+        if clock:
+            convert.fill_stamp(self._clock_msg.clock, snap.t)
+            self._pub_clock.publish(self._clock_msg)
         self._seq += 1
         self._published_t = snap.t
         convert.fill_state(self._state_msg, self._seq, snap)
@@ -288,6 +311,11 @@ class SimNode(Node):
             self._last_marker_wall = now
             self._pub_markers.publish(self._markers.build(snap, self.sim.vehicle))
         self._publish_core_events()
+
+    def _publish_pending(self) -> None:
+        """Before advancing from a service: the current instant's state, if it is not out yet."""
+        if self._published_t is None or self._withheld:
+            self._publish_outputs(clock=self._published_t is None)
 
     def _check_subscribers(self, now: float) -> None:
         """Re-read who listens to the optional outputs (a graph query per tick would cost ~7 us)."""
@@ -402,6 +430,8 @@ class SimNode(Node):
         self.pacer.restart()
         if self._published_t is None:
             self._publish_outputs()  # started paused: state 1, the controller's first question
+        elif self._withheld:
+            self._publish_outputs(clock=False)  # the pause_at instant's state, now that inputs are in
         elif self._lockstep and not self._answered:
             self._await_since = time.monotonic()  # the lockstep wait counts from the resume, not the pause
         response.success, response.message = True, f"resumed at t = {self.sim.t!r} s"
@@ -414,8 +444,7 @@ class SimNode(Node):
         if request.steps == 0:
             response.sim_time = self.sim.t
             return self._srv_fail("step", response, "steps = 0: ask for at least one physics step")
-        if self._published_t is None:
-            self._publish_outputs()  # the starting instant first, so no state is skipped
+        self._publish_pending()
         self._advance(int(request.steps))
         response.success, response.sim_time = True, self.sim.t
         response.message = f"advanced {request.steps} steps of {self.sim.dt} s"
@@ -430,8 +459,7 @@ class SimNode(Node):
             )
         # Whole steps, the last one reaching or passing the target (the 1e-9 absorbs float rounding of t/dt).
         n = max(1, math.ceil((target - self.sim.t) / self.sim.dt - 1e-9))
-        if self._published_t is None:
-            self._publish_outputs()
+        self._publish_pending()
         self._advance(n, stop_on_touchdown=True)
         response.success, response.sim_time_reached = True, self.sim.t
         response.message = f"reached t = {self.sim.t!r} s, phase {self.sim.phase_name}"
@@ -482,6 +510,8 @@ class SimNode(Node):
         if not hasattr(self, "pacer"):
             return  # still constructing
         self._cache_parameters()
+        if "pause_at" in names:
+            self._pause_at = float(self._param("pause_at"))
         if names & {"publish_rate"}:
             self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
             self.pacer.set_period(self._k * self.sim.dt)
@@ -529,6 +559,7 @@ class SimNode(Node):
         """
         self._seq = 0
         self._published_t = None
+        self._withheld = False
         self.health.forget_published()
         self._cmd_t, self._stale, self._answered = None, False, True
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))

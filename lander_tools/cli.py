@@ -28,6 +28,7 @@ SUMMARIES: dict[str, str] = {
     "scenes": "list the scenarios that `lander fly` accepts",
     "design": "control design report for a scenario (linearisation, gains, poles)",
     "analyse": "metrics and plots from recorded flights (bags)",
+    "record": "record topics to a rosbag2 bag (MCAP or sqlite3) until Ctrl-C",
     "bench": "run a benchmark from bench/",
     "sweep": "run a parameter sweep without ROS (many flights, in parallel)",
 }

@@ -20,7 +20,11 @@ What it does:
    waits until the nodes and the recorder have discovered each other, resets the
    sim (so state 1 at t = 0 reaches everyone) and resumes it;
 4. applies the flight's timeline (demand-altitude steps, wind gusts, controller
-   swaps, throttle overrides) at the first state at or after each instant;
+   swaps, throttle overrides) at the first control instant at or after each time,
+   exactly in sim time at any speed: with an autopilot the sim pauses at each such
+   instant (its ``pause_at`` parameter: /clock shows the instant, its state is held
+   back) while the launcher acts and waits until the action is in force, then
+   resumes (:func:`plan_stops`); the flight's end is such a stop too;
 5. ends on landing or crash, at the time limit (sim time), on Ctrl-C/SIGTERM or
    when a node dies; stops the nodes, autopilot first (SIGINT, then SIGTERM,
    then SIGKILL after a grace period), closes the bag (noting the end time and
@@ -67,6 +71,8 @@ STALL_TIMEOUT = 30.0
 STOP_GRACE = 5.0
 
 ACTION_KINDS = ("demand_altitude", "wind", "controller", "throttle", "stabiliser", "parachute")
+#: Wall seconds to wait for the autopilot to report a new demand in force.
+CONFIRM_TIMEOUT = 10.0
 
 
 class LaunchError(ValueError):
@@ -217,6 +223,44 @@ class NodeProcess:
         return self.proc.returncode
 
 
+@dataclass
+class Stop:
+    """Where a sim-time driven flight pauses: control instant ``index`` (t = index * period)."""
+
+    index: int
+    t: float
+    actions: list[Action] = field(default_factory=list)
+    end: bool = False
+
+
+def plan_stops(timeline: list[Action], period: float, duration: float | None) -> list[Stop]:
+    """The pauses that make ``timeline`` exact on the control grid ``t_k = k * period``.
+
+    An action due at ``t`` belongs to the first instant ``t_k >= t``. The sim pauses having
+    reached ``t_k`` but before publishing its state (``pause_at``), so sim-side actions (wind,
+    stabiliser, parachute) act from the step leaving ``t_k`` and autopilot-side ones (demand,
+    controller) from its answer to state k. The end (first instant >= ``duration``) is the last
+    stop. Throttle overrides (sent with the states) and actions at instant 0 (applied before the
+    flight starts) are not listed.
+    """
+    by_index: dict[int, Stop] = {}
+
+    def stop(k: int) -> Stop:
+        return by_index.setdefault(k, Stop(k, k * period))
+
+    for a in timeline:
+        k = max(0, math.ceil(a.t / period - 1e-9))
+        if a.kind == "throttle" or k == 0:
+            continue
+        stop(k).actions.append(a)
+    if duration is not None:
+        k_end = math.ceil(duration / period - 1e-9)
+        for k in [k for k in by_index if k >= k_end]:
+            del by_index[k]  # nothing happens after the end
+        stop(k_end).end = True
+    return [by_index[k] for k in sorted(by_index)]
+
+
 def pilot_mode(plan: FlightPlan, controller: str | None) -> bool:
     """True when the launcher itself answers the sim in lockstep (no autopilot; throttle
     overrides in the timeline, or ``lockstep`` asked for): timeline actions then happen
@@ -332,10 +376,22 @@ class _Supervisor:
         self.cli_stab = n.create_client(SetBool, "/lander/set_stabiliser")
         self.cli_chute = n.create_client(Trigger, "/lander/deploy_parachute")
         self.cli_switch = None
+        #: Sim-time driven timeline (pauses at each action instant): every flight with an autopilot.
+        self.timed = controller is not None
         if controller is not None:
             from lander_interfaces.srv import SwitchController
+            from rcl_interfaces.srv import GetParameters, SetParameters
 
             self.cli_switch = n.create_client(SwitchController, "/autopilot/switch_controller")
+            self.cli_ap_get = n.create_client(GetParameters, "/autopilot/get_parameters")
+            self.cli_sim_set = n.create_client(SetParameters, f"/{SIM_NODE}/set_parameters")
+            self.cli_sim_get = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
+            from rosgraph_msgs.msg import Clock
+
+            n.create_subscription(Clock, "/clock", self._on_clock, reliable)
+            n.create_subscription(ThrottleCommand, "/lander/throttle", self._on_throttle, reliable)
+        self.answered_first = False  #: the autopilot answered state 1 (the reset's) since the last reset
+        self.clock_t = 0.0  #: latest /clock [s]: where a paused sim stands before its state is out
         self.types = {"Float64": Float64, "Vector3Stamped": Vector3Stamped, "ThrottleCommand": ThrottleCommand}
         self.LanderState, self.FlightEvent = LanderState, FlightEvent
         self.state: Any = None
@@ -360,6 +416,13 @@ class _Supervisor:
             self.recorder = Recorder(n, RecorderConfig(plan.record, plan.storage, plan.topics or DEFAULT_TOPICS, meta=meta))
 
     # callbacks ------------------------------------------------------------------------------
+    def _on_throttle(self, msg: Any) -> None:
+        if msg.state_sequence == 1:
+            self.answered_first = True
+
+    def _on_clock(self, msg: Any) -> None:
+        self.clock_t = msg.clock.sec + 1e-9 * msg.clock.nanosec
+
     def _on_state(self, msg: Any) -> None:
         self.state = msg
         self.states += 1
@@ -377,7 +440,7 @@ class _Supervisor:
             if self.end_t is None:
                 self.end_t = self.t
             return  # no more actions or answers: in lockstep the sim now waits to be paused
-        self._apply_due()
+        self._apply_due()  # timed flights: only throttle overrides are left in `pending` (fly())
         held = self.held_throttle
         if held is not None and held.until is not None and self.t >= held.until - 1e-9:
             self.held_throttle = held = None
@@ -419,7 +482,10 @@ class _Supervisor:
             self.pub_demand.publish(m)
         elif a.kind == "wind":
             m = self.types["Vector3Stamped"]()
-            m.header.stamp = self.state.header.stamp if self.state is not None else m.header.stamp
+            if self.timed:  # the sim stands at /clock's instant (its state is held back until resume)
+                m.header.stamp.sec, m.header.stamp.nanosec = divmod(round(self.clock_t * 1e9), 1_000_000_000)
+            elif self.state is not None:
+                m.header.stamp = self.state.header.stamp
             m.header.frame_id = "mars"
             m.vector.x, m.vector.y, m.vector.z = (float(v) for v in a.value)
             self.pub_wind.publish(m)
@@ -446,6 +512,60 @@ class _Supervisor:
                 res = fut.result()
                 ok = getattr(res, "success", True)
                 self.out.write(f"[fly] {name}: {'ok' if ok else 'FAILED'}: {getattr(res, 'message', '')}\n")
+
+
+def _control_period(executor: Any, sup: _Supervisor, plan: FlightPlan) -> float:
+    """The sim's control period [s]: ``steps_per_tick(dt, publish_rate) * dt``, read from the running node."""
+    from rcl_interfaces.srv import GetParameters
+
+    from lander_sim.ros.pacing import steps_per_tick
+
+    res = _call(executor, sup.cli_sim_get, GetParameters.Request(names=["dt", "publish_rate"]), STARTUP_TIMEOUT,
+                "sim parameters")
+    dt, rate = res.values[0].double_value, res.values[1].double_value
+    if dt <= 0.0:
+        from lander_sim.scenes import load_scene
+
+        dt = load_scene(plan.scene).dt
+    return steps_per_tick(dt, rate) * dt
+
+
+def _arm(executor: Any, sup: _Supervisor, t: float) -> None:
+    """Set the sim's ``pause_at`` to ``t`` [s] (< 0: none): it pauses on reaching that instant."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    req = SetParameters.Request(parameters=[Parameter(
+        name="pause_at", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(t)))])
+    res = _call(executor, sup.cli_sim_set, req, STARTUP_TIMEOUT, "pause_at")
+    if not res.results[0].successful:
+        raise LaunchError(f"the sim refused pause_at = {t}: {res.results[0].reason}")
+
+
+def _apply_now(executor: Any, sup: _Supervisor, a: Action) -> None:
+    """Apply ``a`` while the sim is paused and wait until it is in force (demand, services)."""
+    from rcl_interfaces.srv import GetParameters
+
+    sup.apply(a)
+    if a.kind == "demand_altitude":
+        # Topic to the autopilot; its parameter says when the new demand is in force.
+        deadline = time.monotonic() + CONFIRM_TIMEOUT
+        while True:
+            res = _call(executor, sup.cli_ap_get, GetParameters.Request(names=["demand_altitude"]), CONFIRM_TIMEOUT,
+                        "demand_altitude")
+            v = res.values[0]
+            if (v.double_value if v.type == 3 else float(v.integer_value)) == float(a.value):
+                break
+            if time.monotonic() > deadline:
+                raise LaunchError(f"the autopilot did not take demand_altitude = {a.value} within {CONFIRM_TIMEOUT} s")
+            executor.spin_once(timeout_sec=0.01)
+    # Service calls (switch, stabiliser, parachute) were started by apply(): wait for their answers.
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while sup.futures:
+        if time.monotonic() > deadline:
+            raise LaunchError(f"no answer to {', '.join(n for n, _ in sup.futures)} within {STARTUP_TIMEOUT} s")
+        executor.spin_once(timeout_sec=0.01)
+        sup.check_futures()
 
 
 def _call(executor: Any, client: Any, request: Any, timeout: float, what: str) -> Any:
@@ -543,17 +663,29 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
                 raise LaunchError(f"nodes not ready within {STARTUP_TIMEOUT} s (waiting for {', '.join(need)} and /lander/reset)")
             executor.spin_once(timeout_sec=0.05)
         # Reset republishes state 1 at t = 0 now that everyone listens; retried if it was missed.
+        # The sim publishes one state per instant (resume publishes nothing), so in lockstep the
+        # autopilot must have answered state 1 before time runs: reset again if it missed it.
+        def reset_seen(seen: int) -> bool:
+            return sup.states > seen and (controller is None or sup.answered_first)
+
         for attempt in range(5):
             seen = sup.states
+            sup.answered_first = False
             _call(executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
-            t_wait = time.monotonic() + 1.0
-            while sup.states == seen and time.monotonic() < t_wait:
+            t_wait = time.monotonic() + 1.0 + attempt
+            while not reset_seen(seen) and time.monotonic() < t_wait:
                 executor.spin_once(timeout_sec=0.02)
-            if sup.states > seen:
+            if reset_seen(seen):
                 break
         else:
-            raise LaunchError("no state from the simulator after reset")
+            raise LaunchError("no state from the simulator (or no answer from the autopilot) after reset")
         sup._apply_due()  # actions at t = 0 (e.g. the first demand) before the first step
+        stops: list[Stop] = []
+        if sup.timed:
+            period = _control_period(executor, sup, plan)
+            stops = plan_stops([a for a in sup.pending if a.kind != "throttle"], period, plan.duration)
+            sup.pending = [a for a in sup.pending if a.kind == "throttle"]
+            _arm(executor, sup, stops[0].t if stops else -1.0)
         _call(executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
         sup.last_state_wall = time.monotonic()
         while sup.end is None:
@@ -564,6 +696,13 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
                 raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
             executor.spin_once(timeout_sec=0.05)
             sup.check_futures()
+            if stops and sup.end is None and sup.clock_t >= stops[0].t - 1e-6:
+                stop = stops.pop(0)  # the sim stands at stop.t, its state not yet out
+                for a in stop.actions:
+                    _apply_now(executor, sup, a)
+                # At the end: pause_at = now, so resume publishes the end state and pauses again.
+                _arm(executor, sup, stop.t if stop.end else stops[0].t if stops else -1.0)
+                _call(executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
         # Stop at once, autopilot first: in lockstep the sim then waits for an answer that never
         # comes, so it cannot run on (a pause request can wait behind a busy lockstep loop).
         _stop_all(procs)

@@ -231,10 +231,11 @@ def node_alive(node: Any, full_name: str) -> bool:
 
 
 def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """The recorder's options (``lander record`` adds them to its sub-parser)."""
     p = parser or argparse.ArgumentParser(prog="lander record", description=__doc__.split("\n\n")[0])
-    p.add_argument("topics", nargs="*", help=f"topics to record (default: {' '.join(DEFAULT_TOPICS)})")
-    p.add_argument("-o", "--output", required=True, help="bag folder to create")
-    p.add_argument("--storage", default="mcap", help="mcap (default) or sqlite3")
+    p.add_argument("topics", nargs="*", metavar="TOPIC", help=f"topics to record (default: {' '.join(DEFAULT_TOPICS)})")
+    p.add_argument("-o", "--output", required=True, metavar="BAG", help="bag folder to create (must not exist)")
+    p.add_argument("--storage", default="mcap", choices=("mcap", "sqlite3"), help="bag storage (default mcap)")
     p.add_argument("--all", action="store_true", help="record every topic that appears")
     p.add_argument(
         "--stop-when-gone",
@@ -246,7 +247,11 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
 
 def main(argv: list[str] | None = None) -> int:
     """Stand-alone recorder: runs until Ctrl-C / SIGTERM (or the watched node is gone)."""
-    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    return record(build_parser().parse_args(sys.argv[1:] if argv is None else argv))
+
+
+def record(args: argparse.Namespace) -> int:
+    """Record as ``args`` (from :func:`build_parser`) say until Ctrl-C / SIGTERM; 0, or 2 on bad options."""
     try:
         config = RecorderConfig(
             Path(args.output), args.storage, tuple(args.topics) or DEFAULT_TOPICS, bool(args.all)

@@ -48,6 +48,10 @@ def _non_negative(v: Any) -> str | None:
     return None if _is_number(v) and math.isfinite(v) and v >= 0 else "must be a finite number >= 0"
 
 
+def _finite(v: Any) -> str | None:
+    return None if _is_number(v) and math.isfinite(v) else "must be a finite number"
+
+
 def _any_string(v: Any) -> str | None:
     return None if isinstance(v, str) else "must be a string"
 
@@ -101,6 +105,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("gimbal_threshold", 0.0, "|sin theta| below which gimbal lock is flagged; 0: the scene's.", _gimbal, True),
     ParamSpec("seed", 0, "Random seed of the scene's stochastic models (turbulence).", _seed),
     ParamSpec("stabiliser", "scene", "Attitude stabiliser: scene (the scene's setting), on or off.", _stabiliser),
+    ParamSpec(
+        "pause_at", -1.0, "Pause at the first control instant at or after this sim time [s] (once); < 0: never.",
+        _finite,
+    ),
     ParamSpec("start_paused", False, "Start paused (resume, step or run_until to advance).", _bool, True),
     ParamSpec("world_frame", "mars", "Planet-fixed frame id (the core's world frame).", _frame_id),
     ParamSpec("body_frame", "base_link", "Body frame id (principal axes of the lander).", _frame_id),

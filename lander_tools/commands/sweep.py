@@ -7,6 +7,8 @@ Examples::
     lander sweep sweeps/hover-robustness.yaml --dask          # local Dask cluster, 2 workers
     lander sweep sweeps/hover-robustness.yaml --dask tcp://scheduler:8786
     lander sweep sweeps/hover-robustness.yaml --replay 17     # re-fly flight 17 alone, print metrics
+    lander sweep sweeps/hover-robustness.yaml --replay 17 --record out/f17   # ... through the ROS nodes, into a bag
+    lander sweep sweeps/hover-robustness.yaml --through-ros 5 # + first 5 through the nodes, check agreement
     lander sweep sweeps/compare-combined-lqr.yaml             # two controllers on the same cases
 
 Writes ``flights.csv``, ``flights.json`` (and ``flights.parquet`` with pyarrow), ``summary.json``,
@@ -20,6 +22,7 @@ from typing import Any
 
 EXIT_USAGE = 2
 EXIT_NOT_AVAILABLE = 3
+EXIT_DISAGREE = 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +44,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", default=None, metavar="BAG",
                         help="with --replay: fly it through the ROS nodes (the `lander fly` path) into a bag")
     parser.add_argument("--through-ros", type=int, default=None, metavar="N",
-                        help="also fly the first N flights through the ROS nodes and check agreement")
+                        help="also fly the first N flights through the ROS nodes (lockstep) and check that "
+                             "their metrics agree with core-only (run with ./dev sweep ...)")
+    parser.add_argument("--ros-speed", type=float, default=0.0, metavar="X",
+                        help="with --through-ros: real-time factor of those flights (default 0: as fast as possible)")
 
 
 def _fail(msg: str, code: int = EXIT_USAGE) -> int:
@@ -75,6 +81,12 @@ def run(args: argparse.Namespace) -> int:
             return _fail(f"--workers: must be >= 1, got {args.workers}")
         if args.record is not None and args.replay is None:
             return _fail("--record needs --replay INDEX (it records one flight)")
+        if args.through_ros is not None and args.through_ros < 1:
+            return _fail(f"--through-ros: must be >= 1 flight, got {args.through_ros}")
+        if args.through_ros is not None and args.through_ros > spec.flights:
+            return _fail(f"--through-ros: {args.through_ros} is more than the sweep's {spec.flights} flights")
+        if not args.ros_speed >= 0.0:
+            return _fail(f"--ros-speed: must be >= 0 (0 = as fast as possible), got {args.ros_speed}")
         if args.replay is not None and args.replay < 0:
             return _fail(f"--replay: a flight index must be >= 0, got {args.replay}")
         # Fail once, here, on what would fail every flight (scene, controller, control rate).
@@ -109,9 +121,17 @@ def run(args: argparse.Namespace) -> int:
         "engine": result.engine, "workers": result.workers, "wall_time_s": result.wall_time,
         "flights_per_second": result.flights_per_second, **summary.to_jsonable(sums, comps),
     }
-    if args.through_ros:
-        blob["through_ros"] = _through_ros(args.through_ros)
     out = Path(args.out) if args.out else Path("sweep-out") / spec.name
+    check = None
+    if args.through_ros:
+        try:
+            from lander_tools.sweep.ros_path import through_ros
+
+            check = through_ros(spec, args.through_ros, out / "ros", core_rows=rows, speed=args.ros_speed)
+        except ImportError as exc:
+            return _fail(f"--through-ros needs the ROS environment (run it with ./dev sweep ...): {exc}", EXIT_NOT_AVAILABLE)
+        blob["through_ros"] = {**check.as_dict(), "core_flights_per_second": result.flights_per_second,
+                               "summary": check.summary()}
     written = output.write_all(out, rows, blob, text + "\n" + speed)
     if not args.no_plots:
         from lander_tools.sweep.plots import all_plots
@@ -124,12 +144,14 @@ def run(args: argparse.Namespace) -> int:
         print(text)
         print(speed)
         print("wrote: " + ", ".join(str(p) for p in written))
-        if args.through_ros:
-            print(blob["through_ros"])
+        if check is not None:
+            print(check.summary())
     errors = [r for r in rows if r["outcome"] == "error"]
     if errors:
         print(f"lander sweep: warning: {len(errors)} flight(s) raised; first (#{errors[0]['index']}): {errors[0]['error']}")
-    return EXIT_NOT_AVAILABLE if args.through_ros else 0
+    if check is not None and not check.agree:
+        return EXIT_DISAGREE
+    return 0
 
 
 def _replay_recorded(spec: Any, args: argparse.Namespace) -> int:
@@ -155,11 +177,3 @@ def _replay_recorded(spec: Any, args: argparse.Namespace) -> int:
             print(launcher.summary(result))
             code = max(code, result.exit_code)
     return code
-
-
-def _through_ros(n: int) -> str:
-    return (
-        f"--through-ros {n}: not available yet: flying cases through the sim and autopilot nodes in lockstep "
-        "needs the nodes and the launcher to accept a dispersed case (see docs/sweeps.md, 'Not yet'); "
-        "the core-only results above are complete."
-    )

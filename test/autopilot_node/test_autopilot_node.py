@@ -199,11 +199,14 @@ def test_losing_the_state_stream_is_reported_and_nothing_is_commanded(autopilot)
     g = autopilot.ground
     rng = np.random.default_rng(6)
     fly_states(autopilot, 2, rng)
+    assert latest_status(autopilot).state_ok  # the status sent with the last answer
     mark = len(g.throttles)
     g.wait_for(lambda: "state lost" in g.statuses[-1].last_error, 10 * STATE_TIMEOUT + 5.0, "loss reported")
+    assert not g.statuses[-1].state_ok
     g.drain()
     assert len(g.throttles) == mark, "a command was sent without a state"
     fly_states(autopilot, 1, rng)  # back to normal when states come again
+    assert latest_status(autopilot).state_ok
 
 
 def test_start_up_refuses_unknown_parameters_and_bad_values_naming_them(tmp_path: Path):

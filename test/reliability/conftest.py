@@ -20,7 +20,7 @@ from .stack import Stack, Watch
 settings.register_profile(
     "reliability-ci",
     derandomize=True,  # the same examples every run: a failure reproduces as it is
-    max_examples=25,
+    max_examples=15,
     deadline=None,  # a live ROS round trip has no useful per-example deadline
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
     database=None,

@@ -14,7 +14,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from .stack import REPO, START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
 
@@ -107,8 +106,6 @@ def _fly_cli(bag: Path, compose: bool) -> None:
     assert rc == 0, out
 
 
-@pytest.mark.xfail(strict=True, reason="lander fly resets and resumes the sim before sim and autopilot have "
-                   "matched each other: the first states go unanswered and lockstep times out; reported")
 def test_lander_fly_lockstep_answers_every_state_from_the_first(tmp_path: Path, busy_core: subprocess.Popen) -> None:
     """The user's path (``lander fly``, multi-process): a loss at start-up would make flights differ."""
     for k in range(2):

@@ -60,7 +60,9 @@ def test_tiny_sweep_writes_table_summary_and_plots_and_replay_matches(tmp_path, 
         assert repr(replay[key]) == table[2][key], key
 
 
-def test_through_ros_says_it_is_not_available_yet(tmp_path, capsys):
-    spec = _write(tmp_path, {**SMALL, "flights": 1, "end": {"duration": 1.0, "hover_window": 0.5}})
-    assert main(["sweep", spec, "--workers", "1", "--out", str(tmp_path / "o"), "--no-plots", "--through-ros", "2"]) == 3
-    assert "not available yet" in capsys.readouterr().out
+def test_through_ros_count_is_checked(tmp_path, capsys):
+    spec = _write(tmp_path, {**SMALL, "flights": 2})
+    assert main(["sweep", spec, "--through-ros", "0"]) == 2
+    assert "--through-ros: must be >= 1" in capsys.readouterr().err
+    assert main(["sweep", spec, "--through-ros", "3"]) == 2
+    assert "more than the sweep's 2 flights" in capsys.readouterr().err

@@ -1,0 +1,78 @@
+"""Soak: a long lockstep flight of the full stack (``lander fly``: sim + autopilot + recorder) at
+speed 0 with recording: memory bounded, nothing lost, real-time factor steady.
+
+Scene: scenario 0 (circular orbit at 1.2 R) flown by the scenario-7 controller. Scenario 7 itself
+cannot fly for an hour: its 100 kg of fuel last about 140 s of hover. In orbit the controller
+keeps commanding (and burns its fuel), then the lander coasts; every tick still goes
+state -> autopilot -> command -> sim and into the bag, which is what a soak exercises.
+Default: 5 simulated minutes; ``--runslow``: one simulated hour.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lander_tools.bagio import read_bag
+
+from .stack import bench, stamp_s
+
+SCENE = "circular-orbit"
+CONTROLLER = "combined-quaternion"
+#: Bytes a recorder legitimately keeps per message written (MCAP chunk/message index entries are
+#: tens of bytes): a 100 B/message allowance, plus 8 MiB of allocator and cache slack per process.
+INDEX_BYTES_PER_MESSAGE = 100
+SLACK_BYTES = 8 * 2**20
+
+
+def _soak(tmp_path: Path, sim_seconds: float) -> None:
+    bag = tmp_path / "soak"
+    sampler = bench.Sampler(period=0.2)
+    rc, out = bench.fly_recorded(SCENE, sim_seconds, False, bag, extra=("--controller", CONTROLLER),
+                                 sampler=sampler, timeout=60.0 + sim_seconds)
+    series = sampler.stop()
+    assert rc == 0, out  # time limit reached while flying
+    f = bench.loop_figures(bag)
+    b = read_bag(bag, ["/lander/state", "/lander/throttle"])
+    states = b.messages("/lander/state")
+    seq = np.array([m.sequence for m in states])
+    start = int(np.flatnonzero(seq == 1)[-1])
+    t = np.array([stamp_s(m.header.stamp) for m in states[start:]])
+    # Memory: growth per process from a quarter into the flight to its end, against the bound.
+    w0, w1 = f.window_wall
+    n_messages = 2 * len(states)
+    for name, s in series.items():
+        growth = s.rss_at(w1) - s.rss_at(w0 + 0.25 * (w1 - w0))
+        bound = SLACK_BYTES + INDEX_BYTES_PER_MESSAGE * n_messages
+        assert growth < bound, f"{name}: RSS grew {growth / 2**20:.1f} MiB (bound {bound / 2**20:.1f} MiB)"
+    # RTF steady: last quarter at least half the first. A per-tick cost growing with the flight
+    # (a leak, an ever-growing list) shows as a trend; shared-core noise is well below a factor 2.
+    rx = np.asarray(b.topics["/lander/state"].t_bag_ns[start:], dtype=float) * 1e-9
+    q = len(t) // 4
+    rtf_first = (t[q] - t[0]) / (rx[q] - rx[0])
+    rtf_last = (t[-1] - t[-q]) / (rx[-1] - rx[-q])
+    assert rtf_last >= 0.5 * rtf_first, (rtf_first, rtf_last)
+    # No lost messages: no gap in the state sequence, and every state of the flight proper (after
+    # the first second: start-up race of `lander fly`, reported) has its command in the bag.
+    assert t[-1] >= sim_seconds - 1e-6
+    answered = {m.state_sequence for m in b.messages("/lander/throttle")}
+    unanswered = [int(s) for s, ti in zip(seq[start:], t) if 1.0 <= ti < t[-1] and int(s) not in answered]
+    if f.states_missing or unanswered:
+        raise LostMessages(f"{f.states_missing} states missing from the bag; states without a command: {unanswered[:10]}")
+
+
+class LostMessages(AssertionError):
+    """The bag lacks messages the nodes sent (kept apart from memory and speed failures)."""
+
+
+# Intermittent: once 201 of 3001 states were missing from the bag at RTF 28 (reported).
+
+
+def test_soak_five_simulated_minutes(tmp_path: Path) -> None:
+    _soak(tmp_path, 300.0)
+
+
+@pytest.mark.slow
+def test_soak_one_simulated_hour(tmp_path: Path) -> None:
+    _soak(tmp_path, 3600.0)

@@ -652,7 +652,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
                 return False  # the autopilot listens to states and has its command publisher up
             if sup.recorder is not None:
                 sup.recorder.discover()
-                return all(t in sup.recorder.subscribed() for t in need)
+                return all(t in sup.recorder.subscribed() for t in need if sup.recorder.wanted(t))
             return True
 
         while not ready():

@@ -224,12 +224,16 @@ def stamp_s(stamp: Any) -> float:
     return stamp.sec + 1e-9 * stamp.nanosec
 
 
-def raw_messages(bag: Path) -> dict[str, list[tuple[bytes, Any]]]:
-    """Every message of a bag per topic as (raw CDR bytes, decoded message), in bag order."""
+def raw_messages(bag: Path, since: dict[str, int] | None = None) -> dict[str, list[tuple[bytes, Any]]]:
+    """Every message of a bag per topic as (raw CDR bytes, decoded message), in bag order.
+
+    ``since``: per topic, the bag time [ns] before which messages are skipped."""
     from rosbags.highlevel import AnyReader
 
     out: dict[str, list[tuple[bytes, Any]]] = {}
     with AnyReader([bag]) as reader:
-        for conn, _t, raw in reader.messages():
+        for conn, t, raw in reader.messages():
+            if since and t < since.get(conn.topic, 0):
+                continue
             out.setdefault(conn.topic, []).append((bytes(raw), reader.deserialize(raw, conn.msgtype)))
     return out

@@ -39,19 +39,23 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
     # watch + autopilot + recorder on the state; watch + sim + recorder on the command.
     watch.wait_graph({"/lander/state": 3, "/lander/throttle": 3, "/autopilot/status": 2},
                      {"/lander/throttle": 2}, services=("reset", "resume"))
-    for _attempt in range(5):
+    closed = 0
+    for _attempt in range(6):
         n_thr = len(watch.throttles)
+        accepted = int(watch.latest_diag().get("commands_accepted", 0))
         assert watch.call("reset").success
         try:
             watch.wait_for(lambda: any(c.state_sequence == 1 for c in watch.throttles[n_thr:]), 3.0,
                            "the autopilot's answer to state 1")
-            watch.wait_for(lambda: int(watch.latest_diag().get("commands_accepted", 0)) > 0, 3.0,
+            watch.wait_for(lambda: int(watch.latest_diag().get("commands_accepted", 0)) > accepted, 3.0,
                            "the sim accepting a command")
-            break
         except TimeoutError:
             continue  # a side not matched yet: reset again (state 1 is republished)
+        closed += 1
+        if closed == 2:  # once more after the loop closed: by now the recorder has matched as well
+            break
     else:
-        raise AssertionError("the loop sim -> autopilot -> sim never closed after 5 resets")
+        raise AssertionError("the loop sim -> autopilot -> sim did not close twice in 6 resets")
     n0 = len(watch.states)
     assert watch.call("resume").success
     watch.wait_for(lambda: any(stamp_s(s.header.stamp) >= FLIGHT_S for s in watch.states[n0:]), START_TIMEOUT,
@@ -63,14 +67,22 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
     assert stack.stop("sim") == 0
     assert stack.stop("recorder") == 0
     assert diag["lockstep_timeouts"] == "0", diag
+    # Gone from the graph, so that the next flight's discovery counts only its own processes.
+    n = watch.node
+    watch.wait_for(lambda: (n.count_subscribers("/lander/state"), n.count_subscribers("/lander/throttle"),
+                            n.count_publishers("/lander/throttle")) == (1, 1, 1), START_TIMEOUT,
+                   "the stopped processes leaving the graph")
 
 
 def _flight(bag: Path) -> dict[str, list[bytes]]:
     """Raw payloads of the flight proper: states after the last reset up to FLIGHT_S, their answers."""
-    msgs = raw_messages(bag)
-    states = msgs["/lander/state"]
-    start = max(i for i, (_, m) in enumerate(states) if m.sequence == 1)
-    states = [(r, m) for r, m in states[start:] if stamp_s(m.header.stamp) <= FLIGHT_S]
+    from lander_tools.bagio import read_bag
+
+    st = read_bag(bag, ["/lander/state"]).topics["/lander/state"]
+    start = max(i for i, m in enumerate(st.messages) if m.sequence == 1)
+    t_start = int(st.t_bag_ns[start])  # answers to earlier epochs (start-up handshake) come before
+    msgs = raw_messages(bag, since={t: t_start for t in TOPICS})
+    states = [(r, m) for r, m in msgs["/lander/state"] if stamp_s(m.header.stamp) <= FLIGHT_S]
     seqs = {m.sequence for _, m in states}
     np.testing.assert_array_equal(sorted(seqs), np.arange(1, len(states) + 1))  # nothing lost
     # The state that reaches FLIGHT_S may be the last one (`lander fly` stops the autopilot there).

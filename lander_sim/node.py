@@ -40,7 +40,7 @@ from visualization_msgs.msg import MarkerArray
 
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
-from lander_sim.ros.config import NODE_NAME, PARAMETERS, ConfigError, check_parameter, check_params_file
+from lander_sim.ros.config import NODE_NAME, PARAMETERS, SCENE_SEED, ConfigError, check_parameter, check_params_file
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
@@ -546,7 +546,7 @@ class SimNode(Node):
             integrator=self._param("integrator") or None,
             dt=self._param("dt") or None,
             gimbal_threshold=self._param("gimbal_threshold") or None,
-            seed=self._param("seed"),
+            seed=None if self._param("seed") == SCENE_SEED else self._param("seed"),
         )
         self._apply_stabiliser(sim)
         return sim

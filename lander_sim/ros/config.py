@@ -66,8 +66,13 @@ def _bool(v: Any) -> str | None:
     return None if isinstance(v, bool) else "must be true or false"
 
 
+#: ``seed`` parameter value meaning "the scene's own seed" (its ``wind.gust.seed``).
+SCENE_SEED = -1
+
+
 def _seed(v: Any) -> str | None:
-    return None if isinstance(v, int) and not isinstance(v, bool) and v >= 0 else "must be an integer >= 0"
+    ok = isinstance(v, int) and not isinstance(v, bool) and v >= SCENE_SEED
+    return None if ok else f"must be an integer >= 0, or {SCENE_SEED} for the scene's own seed"
 
 
 def _stabiliser(v: Any) -> str | None:
@@ -103,7 +108,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
         "command_timeout", 0.5, "Staleness limit [s, sim time] of a held throttle command; 0 disables.", _non_negative
     ),
     ParamSpec("gimbal_threshold", 0.0, "|sin theta| below which gimbal lock is flagged; 0: the scene's.", _gimbal, True),
-    ParamSpec("seed", 0, "Random seed of the scene's stochastic models (turbulence).", _seed),
+    ParamSpec("seed", SCENE_SEED, "Seed of the scene's stochastic models (wind gusts); -1 keeps the scene's wind.gust.seed.", _seed),
     ParamSpec("stabiliser", "scene", "Attitude stabiliser: scene (the scene's setting), on or off.", _stabiliser),
     ParamSpec(
         "pause_at", -1.0, "Pause at the first control instant at or after this sim time [s] (once); < 0: never.",

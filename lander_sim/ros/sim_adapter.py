@@ -15,7 +15,6 @@ speed from the state with the same definitions as ``derived()``; a unit test
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -61,9 +60,9 @@ class Readout:
 class SimAdapter:
     """The node's handle on one :class:`Simulation` of one scene."""
 
-    def __init__(self, sim: Simulation, seed: int = 0) -> None:
+    def __init__(self, sim: Simulation, seed: int | None = None) -> None:
         self.sim = sim
-        self.seed = seed
+        self.seed = seed  # None: the scene's own seed
         self._conservative = _is_conservative(sim.scene)
         self._thrust_used = False
         self._energy0 = sim.derived().energy
@@ -121,13 +120,11 @@ class SimAdapter:
         return self.sim.drain_events()
 
     def reset(self, seed: int | None = None) -> None:
-        """Back to the scene's initial state, bit for bit; ``seed`` re-seeds stochastic models if the core has any."""
+        """Back to the scene's initial state, bit for bit; ``seed`` re-seeds the stochastic models (gusts)
+        and stays in force for later resets (None: the seed already in force)."""
         if seed is not None:
             self.seed = seed
-        if "seed" in inspect.signature(self.sim.reset).parameters:
-            self.sim.reset(seed=self.seed)  # type: ignore[call-arg]
-        else:
-            self.sim.reset()  # no stochastic models in this core: the seed is only recorded
+        self.sim.reset(seed=self.seed)
         self._thrust_used = False
         self._energy0 = self.sim.derived().energy
 
@@ -191,7 +188,7 @@ def build_simulation(
     integrator: str | None = None,
     dt: float | None = None,
     gimbal_threshold: float | None = None,
-    seed: int = 0,
+    seed: int | None = None,
 ) -> SimAdapter:
     """Load scene ``name`` (name, alias or path) and build its simulation with the node's overrides.
 
@@ -201,4 +198,7 @@ def build_simulation(
     scene = load_scene(name)
     if gimbal_threshold is not None:
         scene = dataclasses.replace(scene, gimbal_threshold=gimbal_threshold)
-    return SimAdapter(Simulation(scene, integrator=integrator, dt=dt), seed=seed)
+    adapter = SimAdapter(Simulation(scene, integrator=integrator, dt=dt), seed=seed)
+    if seed is not None:
+        adapter.reset(seed)
+    return adapter

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
 import yaml
 
 EXIT_OK = 0
@@ -150,6 +151,8 @@ class FlightResult:
     counts: dict[str, int] = field(default_factory=dict)
     bag: Path | None = None
     wall_time: float = 0.0
+    #: The last state seen: altitude [m], climb rate [m/s], ground speed [m/s], fuel [kg], tilt [deg].
+    final: dict[str, float] = field(default_factory=dict)
 
 
 def resolve_controller(plan: FlightPlan) -> str | None:
@@ -207,13 +210,17 @@ class NodeProcess:
     def alive(self) -> bool:
         return self.proc.poll() is None
 
-    def stop(self, grace: float = STOP_GRACE) -> int | None:
-        """SIGINT (the nodes' clean exit), then SIGTERM, then SIGKILL; returns the exit code."""
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+    def stop(self, grace: float = STOP_GRACE, interrupted: bool = False) -> int | None:
+        """SIGINT (the nodes' clean exit), then SIGTERM, then SIGKILL; returns the exit code.
+
+        ``interrupted``: SIGINT was already sent; a second one would break the node's clean-up.
+        """
+        for sig in (None if interrupted else signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             if self.proc.poll() is not None:
                 break
             try:
-                self.proc.send_signal(sig)
+                if sig is not None:
+                    self.proc.send_signal(sig)
                 self.proc.wait(timeout=grace)
             except subprocess.TimeoutExpired:
                 continue
@@ -708,6 +715,8 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         _stop_all(procs)
         code = EXIT_CRASHED if sup.end == "crashed" else EXIT_OK
         result = FlightResult(sup.end, code, sup.end_t if sup.end_t is not None else sup.t, sup.states)
+        if sup.state is not None:
+            result.final = final_state(sup.state)
     except _Interrupted:
         result = FlightResult("interrupted", EXIT_INTERRUPTED, sup.t if sup else 0.0, sup.states if sup else 0,
                               f"stopped by {stop_reason[0] if stop_reason else 'signal'}")
@@ -746,14 +755,16 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
 def _stop_all(procs: dict[str, NodeProcess]) -> None:
     """Signal every node to stop (autopilot first), then wait for each (see NodeProcess.stop)."""
     order = sorted(procs.values(), key=lambda p: p.name != "autopilot")
+    interrupted = set()
     for p in order:
         if p.alive():
             try:
                 p.proc.send_signal(signal.SIGINT)
+                interrupted.add(p.name)
             except ProcessLookupError:
                 pass
     for p in order:
-        p.stop()
+        p.stop(interrupted=p.name in interrupted)
 
 
 def _drain(sup: _Supervisor, executor: Any, quiet: float = 0.2, limit: float = 3.0) -> None:
@@ -776,6 +787,24 @@ class _NodeDied(Exception):
     pass
 
 
+def final_state(msg: Any) -> dict[str, float]:
+    """What a pilot reads off the last LanderState: altitude, rates, fuel and the tilt of the
+    body z axis from the local vertical (the orientation rotates body into world, ROS convention)."""
+    from lander_sim.physics.rotation import body_to_world
+
+    o, p = msg.orientation, msg.position
+    z_W = body_to_world(np.array([o.w, o.x, o.y, o.z]), np.array([0.0, 0.0, 1.0]))
+    r = np.array([p.x, p.y, p.z])
+    cos_tilt = float(z_W @ r) / float(np.linalg.norm(r) * np.linalg.norm(z_W))
+    return {
+        "altitude": float(msg.altitude),
+        "climb_rate": float(msg.climb_rate),
+        "ground_speed": float(msg.ground_speed),
+        "fuel": float(msg.fuel_mass),
+        "tilt_deg": math.degrees(math.acos(max(-1.0, min(1.0, cos_tilt)))),
+    }
+
+
 def summary(result: FlightResult) -> str:
     """The short flight summary ``lander fly`` prints."""
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
@@ -785,6 +814,12 @@ def summary(result: FlightResult) -> str:
     ]
     if result.message:
         lines.append(f"  {result.message}")
+    f = result.final
+    if f:
+        lines.append(
+            f"  last state: altitude {f['altitude']:.2f} m, climb rate {f['climb_rate']:+.3f} m/s, "
+            f"ground speed {f['ground_speed']:.3f} m/s, tilt {f['tilt_deg']:.2f} deg, fuel {f['fuel']:.2f} kg"
+        )
     if result.bag is not None:
         lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages)")
     return "\n".join(lines)

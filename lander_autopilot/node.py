@@ -59,7 +59,7 @@ from lander_autopilot.ros.config import (
     parse_controller_params,
     scene_autopilot,
 )
-from lander_autopilot.ros.slot import ControllerChoice, ControllerSlot, OutputError, build_choice
+from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.

@@ -416,7 +416,7 @@ class SimNode(Node):
         self._apply_stabiliser(self.sim)  # the core's reset restores the scene's setting
         self._after_reset()
         response.success = True
-        response.message = f"reset to t = 0" + (f" with seed {seed}" if seed is not None else "")
+        response.message = "reset to t = 0" + (f" with seed {seed}" if seed is not None else "")
         return response
 
     def _srv_pause(self, request: Trigger.Request, response: Trigger.Response):

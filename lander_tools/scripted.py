@@ -32,8 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from lander_sim.yaml_file import read_yaml
 from lander_tools.launcher import ACTION_KINDS, Action, FlightPlan, FlightResult, fly
 
 _TOP_KEYS = {"name", "description", "scene", "controller", "controller_params", "speed", "lockstep",
@@ -96,9 +95,9 @@ def is_script(arg: str | Path) -> bool:
     if p.suffix not in (".yaml", ".yml") or not p.is_file():
         return False
     try:
-        data = yaml.safe_load(p.read_text())
-    except yaml.YAMLError:
-        return False
+        data = read_yaml(p, "scripted flight", ScriptError)
+    except ScriptError:
+        return False  # not a readable script: the scene loader says what is wrong with the file
     return isinstance(data, dict) and "scene" in data and "vehicle" not in data
 
 
@@ -211,13 +210,7 @@ def parse_script(data: Any, source: str = "<script>") -> Script:
 def load_script(path: str | Path) -> Script:
     """Read and validate a scripted flight YAML file."""
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ScriptError(f"{p}: cannot read: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise ScriptError(f"{p}: not valid YAML: {exc}") from None
-    return parse_script(data, str(p))
+    return parse_script(read_yaml(p, "scripted flight", ScriptError), str(p))
 
 
 def shipped_flights() -> list[Path]:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-import yaml
+from lander_sim.yaml_file import read_yaml
 
 #: The node's name, which is also the top-level key of a ROS parameters YAML file.
 NODE_NAME = "lander_sim"
@@ -146,10 +146,7 @@ def check_params_file(path: str | Path) -> dict[str, Any]:
     so a typo fails loudly instead of being ignored by rcl.
     """
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"{p}: cannot read parameters file: {exc}") from None
+    data = read_yaml(p, "parameters file", ConfigError)
     if not isinstance(data, dict):
         raise ConfigError(f"{p}: expected a mapping with key {NODE_NAME!r} (or '/**')")
     params: dict[str, Any] = {}

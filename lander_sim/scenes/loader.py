@@ -20,6 +20,7 @@ from lander_sim.physics.state import pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
+from lander_sim.yaml_file import read_yaml
 
 SCENE_DIR = Path(__file__).resolve().parent
 
@@ -449,15 +450,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
 def load_file(path: str | Path) -> Scene:
     """Load and validate one scene file."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as e:
-        raise SceneError(f"{p}: cannot read scene file: {e.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise SceneError(f"{p.name}: not valid YAML: {e}") from None
-    return parse_scene(data, p.name, p)
+    return parse_scene(read_yaml(p, "scene file", SceneError), p.name, p)
 
 
 def _packaged() -> list[Path]:

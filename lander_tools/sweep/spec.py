@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
+
+from lander_sim.yaml_file import read_yaml
 
 
 class SweepSpecError(ValueError):
@@ -409,13 +410,4 @@ def parse_spec(data: Any, source: str = "<dict>") -> SweepSpec:
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep YAML file; errors name the file and the key."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise SweepSpecError(f"{p}: cannot read sweep spec: {exc.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise SweepSpecError(f"{p}: not valid YAML: {exc}") from None
-    spec = parse_spec(data, str(p))
-    return spec
+    return parse_spec(read_yaml(p, "sweep spec", SweepSpecError), str(p))

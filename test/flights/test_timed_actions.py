@@ -11,7 +11,6 @@ from lander_autopilot.controllers import Demand, make_controller
 from lander_autopilot.ros.config import scene_autopilot
 from lander_autopilot.ros.convert import state_view
 from lander_sim.scenes import load_scene
-from lander_tools.bagio import read_bag
 from lander_tools.launcher import Action, plan_stops
 from lander_tools.scripted import parse_script
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from scipy.integrate import solve_ivp
 
 from lander_sim.physics import rotation as rot

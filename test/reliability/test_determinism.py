@@ -10,12 +10,11 @@ operations. Wall time enters nowhere, so any difference at all, even one ulp, is
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 
-from .stack import REPO, START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
+from .stack import START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
 
 SCENE = "hover-canted"  # scenario 7 with the seed-2 canted thrusters, its own autopilot
 SEED = 7

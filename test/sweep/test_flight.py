@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from lander_sim.physics import rotation
-from lander_sim.physics.constants import MARS_RADIUS
 from lander_tools.sweep.dispersion import FlightCase
 from lander_tools.sweep.case_scene import flown_scene, nominal_scene
 from lander_tools.sweep.flight import fly_case

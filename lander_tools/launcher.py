@@ -171,6 +171,16 @@ def resolve_controller(plan: FlightPlan) -> str | None:
     return ap.get("controller") if hasattr(ap, "get") else getattr(ap, "controller", None)
 
 
+def scene_end_time(name: str) -> float | None:
+    """The scene's ``end.max_time`` [s] (None: the flight ends on landing, crash or Ctrl-C)."""
+    from lander_sim.scenes import load_scene
+
+    try:
+        return load_scene(name).end_time
+    except ValueError as exc:
+        raise LaunchError(str(exc)) from None
+
+
 # --- child processes --------------------------------------------------------------------------
 
 
@@ -603,6 +613,8 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
     from lander_tools.progress import Progress
 
     out = out or sys.stdout
+    if plan.duration is None:
+        plan.duration = scene_end_time(plan.scene)  # the scene's own end.max_time, if it has one
     progress = progress or Progress(total=plan.duration)
     wall0 = time.monotonic()
     controller = resolve_controller(plan)

@@ -5,7 +5,7 @@ The real node runs as a subprocess at speed 0 (as fast as possible), 1 kHz physi
 second from the node's /clock, once with nobody subscribed to the state topics and once
 with a subscriber on /lander/state, /lander/odom and /lander/pose. Goal: at least 50x.
 
-    ./dev exec python bench/node_rtf.py [--json F] [--quick] [--scene hover]
+    ./dev exec python bench/node_rtf.py [--json F] [--quick] [--scene hover-canted]
 """
 from __future__ import annotations
 
@@ -67,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", type=Path, help="also write the results to this JSON file")
     ap.add_argument("--quick", action="store_true", help="2 s per case instead of 8 s")
-    ap.add_argument("--scene", default="hover", help="scene to fly (default: hover, the full lander)")
+    ap.add_argument("--scene", default="hover-canted",
+                    help="scene to fly (default: hover-canted, scenario 7 flying free: the full lander without the stabiliser aid)")
     a = ap.parse_args(argv)
     import rclpy
 

@@ -267,7 +267,7 @@ def read_bag(path: str | os.PathLike[str], topics: list[str] | None = None) -> B
         except BagError:
             raise
         except Exception as err:  # noqa: BLE001 - rosbags raises many kinds; we fall back below
-            first_error = f"{type(err).__name__}: {err}"
+            first_error = f"{type(err).__name__}: {' '.join(str(err).split())}"  # one line: YAML errors span several
     else:
         first_error = "no metadata.yaml" if p.is_dir() else "a single file, not a bag folder"
     mcaps = [p] if p.is_file() and p.suffix == ".mcap" else sorted(folder.glob("*.mcap")) if p.is_dir() else []

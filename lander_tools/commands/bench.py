@@ -17,6 +17,8 @@ BENCHMARKS = {
     "extremes": "stability map over step and spin rate, gimbal lock, odd inertia, bang-bang",
     "models": "steps per second of each scene and with models added one by one",
     "speed": "raw Verlet step speed: compiled kernel vs numpy path vs naive",
+    "node_rtf": "real-time factor of the sim node at 1 kHz physics, 50 Hz publishing (ROS)",
+    "full_stack": "sim + autopilot + recorder flying scenario 7: RTF, latency, CPU, lost messages (ROS)",
 }
 
 

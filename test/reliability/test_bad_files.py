@@ -48,12 +48,8 @@ def _one_line_error(res: subprocess.CompletedProcess, names: str) -> None:
     assert names in lines[0], lines[0]
 
 
-_NOT_UTF8 = pytest.mark.xfail(strict=True, reason="load_scene lets UnicodeDecodeError out of a non-UTF-8 file: "
-                              "not a SceneError and the message does not name the file; reported")
 
-
-@pytest.mark.parametrize("kind", [pytest.param(k, marks=_NOT_UTF8) if k == "binary" else k
-                                  for k in sorted(BROKEN_SCENES)])
+@pytest.mark.parametrize("kind", sorted(BROKEN_SCENES))
 def test_lander_fly_on_a_broken_scene_is_a_one_line_error(kind: str, tmp_path: Path) -> None:
     path = tmp_path / f"broken-{kind}.yaml"
     path.write_bytes(BROKEN_SCENES[kind])
@@ -69,9 +65,7 @@ def _write_bag(path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("damage", ["garbage_mcap", "truncated", "no_files", pytest.param(
-    "bad_metadata", marks=pytest.mark.xfail(strict=True, reason="lander analyse prints the YAML parser's multi-line "
-                                            "message for a broken metadata.yaml; reported"))])
+@pytest.mark.parametrize("damage", ["garbage_mcap", "truncated", "no_files", "bad_metadata"])
 def test_lander_analyse_on_a_corrupt_bag_is_a_one_line_error(damage: str, tmp_path: Path) -> None:
     bag = _write_bag(tmp_path / "bag")
     mcap = next(bag.glob("*.mcap"))
@@ -94,7 +88,6 @@ def test_lander_analyse_on_a_corrupt_bag_is_a_one_line_error(damage: str, tmp_pa
     _one_line_error(res, "bag")
 
 
-@_NOT_UTF8
 @settings(PROFILE, max_examples=60)
 @given(st.data())
 def test_mutated_scene_files_load_or_raise_scene_error(tmp_path_factory: pytest.TempPathFactory, data) -> None:

@@ -42,6 +42,7 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 
 from lander_autopilot.controllers import Demand
@@ -60,11 +61,13 @@ from lander_autopilot.ros.config import (
     scene_autopilot,
 )
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
+from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, install_stop_handlers
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
 _STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: Demand altitude input: only the newest demand matters, a few queued are plenty.
+_DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
 #: Wall period [s] of the state watchdog (steady clock: it must notice a simulator whose /clock stopped).
 _WATCHDOG_PERIOD = 0.1
@@ -109,11 +112,11 @@ class AutopilotNode(Node):
         self.add_post_set_parameters_callback(self._after_set_parameters)
 
         control = MutuallyExclusiveCallbackGroup()  # states, demands and the watchdog, in order
-        self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", _QOS)
-        self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", _QOS)
+        self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", OUTPUT_QOS)
+        self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
         self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS, callback_group=control)
-        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _QOS, callback_group=control)
+        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS, callback_group=control)
         # Own group: a build (python-control design) runs here while states are answered.
         self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch,
                             callback_group=MutuallyExclusiveCallbackGroup())
@@ -297,11 +300,21 @@ class AutopilotNode(Node):
         self._pub_events.publish(ev)
 
 
+    def flush(self, timeout: float = FLUSH_TIMEOUT) -> bool:
+        """Wait until the subscribers acknowledged the commands, status and events published
+        (before the process exits: a recorder then gets the last ones too)."""
+        return flush((self._pub_throttle, self._pub_status, self._pub_events), timeout)
+
+
 def _number(value) -> float:
     """A parameter value as float; refused (naming it) unless it is a number."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f"parameter 'demand_altitude' = {value!r} must be a number of metres")
     return float(value)
+
+
+def _interrupt() -> None:
+    raise KeyboardInterrupt
 
 
 def make_executor(context=None) -> MultiThreadedExecutor:
@@ -311,13 +324,25 @@ def make_executor(context=None) -> MultiThreadedExecutor:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or shutdown."""
-    rclpy.init(args=sys.argv if argv is None else argv)
+    # Our own SIGINT/SIGTERM handling (as the simulator's): the context stays up to flush the last
+    # commands to the subscribers before exit.
+    rclpy.init(args=sys.argv if argv is None else argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = AutopilotNode()
         executor = make_executor()
         executor.add_node(node)
-        executor.spin()
+        # A stop request interrupts spin() in this thread, which only waits and dispatches (control
+        # steps run in the pool's threads), so no step is cut short; then the pool finishes and the
+        # last messages are flushed. (spin_once with a timeout in a loop instead would busy-wait:
+        # the multi-threaded executor reuses its wait generator, whose timeout runs out once.)
+        install_stop_handlers(_interrupt)
+        try:
+            executor.spin()
+        except KeyboardInterrupt:
+            pass
+        executor.shutdown(timeout_sec=FLUSH_TIMEOUT)
+        node.flush()
     except (ValueError, ParameterException) as exc:  # ConfigError, SceneError, ControllerError, DemandError
         print(f"autopilot_node: {exc}", file=sys.stderr)
         return 2

@@ -30,10 +30,11 @@ from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import ParameterException, ParameterNotDeclaredException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
@@ -41,6 +42,7 @@ from visualization_msgs.msg import MarkerArray
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import NODE_NAME, PARAMETERS, SCENE_SEED, ConfigError, check_parameter, check_params_file
+from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, install_stop_handlers
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
@@ -54,7 +56,6 @@ except ImportError:  # pragma: no cover - depends on the install
 
 #: Queue depth of the input topics: large enough that a burst of commands is counted, not dropped.
 _INPUT_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-_OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: Wall time between executor passes while ticks are due back to back (speed 0 or catching up) [s].
 #: One idle pass of the EventsExecutor costs ~70 us (measured), a tick ~150 us, so passing after every
 #: tick would cost a third of the speed; a pass drains everything pending (see _serve), so a
@@ -105,18 +106,19 @@ class SimNode(Node):
         self._stale = False
         self._last_marker_wall = -math.inf
         self._next_diag_wall = time.monotonic()
+        self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
 
         self.sim: SimAdapter = self._load(self._param("scene"))
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer = Pacer(self._param("speed"), self._k * self.sim.dt)
 
-        self._pub_clock = self.create_publisher(Clock, "/clock", _OUTPUT_QOS)
-        self._pub_state = self.create_publisher(LanderState, "/lander/state", _OUTPUT_QOS)
-        self._pub_odom = self.create_publisher(Odometry, "/lander/odom", _OUTPUT_QOS)
-        self._pub_pose = self.create_publisher(PoseStamped, "/lander/pose", _OUTPUT_QOS)
-        self._pub_markers = self.create_publisher(MarkerArray, "/lander/markers", _OUTPUT_QOS)
+        self._pub_clock = self.create_publisher(Clock, "/clock", OUTPUT_QOS)
+        self._pub_state = self.create_publisher(LanderState, "/lander/state", OUTPUT_QOS)
+        self._pub_odom = self.create_publisher(Odometry, "/lander/odom", OUTPUT_QOS)
+        self._pub_pose = self.create_publisher(PoseStamped, "/lander/pose", OUTPUT_QOS)
+        self._pub_markers = self.create_publisher(MarkerArray, "/lander/markers", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", QoSProfile(depth=1000))
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", _OUTPUT_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
 
         c = self._counted
@@ -159,7 +161,7 @@ class SimNode(Node):
         must run as fast as possible while still serving inputs between ticks.
         """
         last_spin = 0.0
-        while self.context.ok():
+        while self.context.ok() and not self._stop_requested:
             wait = self._loop_once()
             now = time.monotonic()
             # Running flat out an executor pass costs about half a tick (~70 us measured): serve
@@ -173,6 +175,15 @@ class SimNode(Node):
                         break  # shut down from outside (Ctrl-C) while in the executor
                     raise
                 last_spin = now
+
+    def request_stop(self) -> None:
+        """Make :meth:`run` return after the current pass (safe to call from a signal handler)."""
+        self._stop_requested = True
+
+    def flush(self, timeout: float = FLUSH_TIMEOUT) -> bool:
+        """Wait until the subscribers acknowledged every output published (before the process exits)."""
+        return flush((self._pub_state, self._pub_clock, self._pub_events, self._pub_diag, self._pub_odom,
+                      self._pub_pose, self._pub_markers), timeout)
 
     def _serve(self, executor, wait: float) -> None:
         """One executor pass (blocking up to ``wait`` s), then drain whatever else is pending.
@@ -493,6 +504,36 @@ class SimNode(Node):
         self._marker_period = 1.0 / float(self._param("marker_rate"))
         self._world_frame = str(self._param("world_frame"))
 
+    def set_parameters(self, parameter_list):
+        """rclpy's ``set_parameters``, with every refused parameter counted and announced."""
+        results = super().set_parameters(parameter_list)  # raises on an undeclared name (counted below)
+        for param, result in zip(parameter_list, results):
+            if not result.successful:
+                self._reject_parameters([param], result.reason)
+        return results
+
+    def set_parameters_atomically(self, parameter_list):
+        """rclpy's ``set_parameters_atomically`` (what the parameter services call), with a refusal
+        counted and announced like any other bad input: our validation, a read-only or wrongly
+        typed value, or an undeclared name (rclpy's own checks, which run before our callback)."""
+        try:
+            result = super().set_parameters_atomically(parameter_list)
+        except ParameterNotDeclaredException as exc:
+            self._reject_parameters(parameter_list, str(exc))
+            raise
+        if not result.successful:
+            self._reject_parameters(parameter_list, result.reason)
+        return result
+
+    def _reject_parameters(self, params, reason: str) -> None:
+        """One rejection per refused request, of kind ``parameter.<name>`` (``parameter.undeclared``
+        for a name the node does not have: the kinds in the diagnostics stay a bounded set)."""
+        self._callbacks += 1
+        if not hasattr(self, "_pub_events"):
+            return  # still constructing: a bad override stops the node (ConfigError) instead
+        name = params[0].name if params else ""
+        self._reject(f"parameter.{name if self.has_parameter(name) else 'undeclared'}", reason)
+
     def _on_set_parameters(self, params) -> SetParametersResult:
         self._callbacks += 1
         for p in params:
@@ -593,13 +634,17 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sim_node: {exc}", file=sys.stderr)
         return 2
-    rclpy.init(args=argv)
+    # Our own SIGINT/SIGTERM handling: rclpy's would shut the context down at once, and then the
+    # last messages could not be flushed to the subscribers (see SimNode.flush).
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = SimNode()
+        install_stop_handlers(node.request_stop)
         executor = make_executor()
         executor.add_node(node)
         node.run(executor)
+        node.flush()
     except (ConfigError, SceneError, ValueError, ParameterException) as exc:
         print(f"sim_node: {exc}", file=sys.stderr)
         return 2

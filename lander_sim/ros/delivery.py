@@ -1,0 +1,63 @@
+"""Delivery of the nodes' outputs: the QoS of what they publish and an orderly end that loses nothing.
+
+Shared by the simulator and the autopilot node (and anything else that publishes the control
+loop's topics), so both keep the same promises to a recorder:
+
+* :data:`OUTPUT_QOS`: reliable, with a writer history deep enough that a subscriber stalled for a
+  moment (a recorder descheduled on a loaded machine) still receives every message;
+* :func:`flush`: before a node process exits, wait until its subscribers acknowledged what it
+  published (a destroyed reliable writer drops whatever it has not delivered yet);
+* :func:`install_stop_handlers`: SIGINT/SIGTERM end the node's loop instead of rclpy shutting the
+  context down at once, which would make that flush impossible.
+"""
+from __future__ import annotations
+
+import signal
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from rclpy.duration import Duration
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+#: Writer history of every output. A reliable KEEP_LAST writer keeps its last ``depth`` messages for
+#: a subscriber that has not acknowledged them yet and drops older ones unseen, so the depth is the
+#: longest stall of the slowest subscriber it survives: rate x stall. Fastest rates: speed 0, about
+#: 40x real time at 10 Hz in lockstep (full stack) or 50x at 50 Hz free running: 400-2500 messages/s
+#: per topic. Longest gap in a recorder's receive times during a flight, measured under a flat-out
+#: competing core: 0.16 s (bench/full_stack.py "rx gap", docs/reliability.md) -> 64-400 messages.
+#: 1000 leaves a margin of 2.5 at the worst rate and costs memory only for messages not yet
+#: acknowledged (KEEP_LAST never blocks the publisher, so the control loop cannot stall on it).
+OUTPUT_DEPTH = 1000
+OUTPUT_QOS = QoSProfile(depth=OUTPUT_DEPTH, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: Wall seconds a node waits in all at exit for its subscribers to acknowledge its last messages
+#: (a dead subscriber, still matched until its lease expires, would otherwise hold the exit up).
+FLUSH_TIMEOUT = 1.0
+
+
+def flush(publishers: Iterable[Any], timeout: float = FLUSH_TIMEOUT) -> bool:
+    """Wait until every subscriber acknowledged everything ``publishers`` published, at most
+    ``timeout`` wall seconds in all; True if they all did."""
+    deadline = time.monotonic() + timeout
+    ok = True
+    for pub in publishers:
+        left = max(0.0, deadline - time.monotonic())
+        ok = pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))) and ok
+    return ok
+
+
+def install_stop_handlers(request_stop: Callable[[], None]) -> None:
+    """SIGINT and SIGTERM call ``request_stop`` (the node's loop ends cleanly, then it flushes);
+    a second signal raises KeyboardInterrupt, so a node stuck somewhere still ends.
+
+    Use with ``rclpy.init(..., signal_handler_options=SignalHandlerOptions.NO)``."""
+    received: list[int] = []
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        received.append(signum)
+        if len(received) > 1:
+            raise KeyboardInterrupt
+        request_stop()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)

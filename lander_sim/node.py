@@ -98,6 +98,7 @@ class SimNode(Node):
         self._withheld = False  # paused at pause_at: the state of the current instant is not out yet
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
         self._want_odom = self._want_pose = self._want_markers = False
+        self._state_subscribers = 0  # subscriptions matched by the state publisher (diagnostics)
         self._next_sub_check = 0.0
         self._awaiting = 0  # lockstep: state sequence whose answer is awaited (0: none)
         self._await_since = 0.0
@@ -331,6 +332,7 @@ class SimNode(Node):
     def _check_subscribers(self, now: float) -> None:
         """Re-read who listens to the optional outputs (a graph query per tick would cost ~7 us)."""
         self._next_sub_check = now + _SUBSCRIBER_CHECK_PERIOD
+        self._state_subscribers = self._pub_state.get_subscription_count()
         self._want_odom = self._pub_odom.get_subscription_count() > 0
         self._want_pose = self._pub_pose.get_subscription_count() > 0
         self._want_markers = self._pub_markers.get_subscription_count() > 0
@@ -364,6 +366,9 @@ class SimNode(Node):
                 "paused": str(self._paused),
                 "steps_per_tick": str(self._k),
                 "pacer_overruns": str(self.pacer.overruns),
+                # Matched by this node's writer (not just seen in the graph): a start-up handshake
+                # can wait for it, so the first state reaches everyone (test/reliability).
+                "state_subscribers": str(self._state_subscribers),
             },
         )
         arr.status = [status]

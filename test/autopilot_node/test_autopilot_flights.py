@@ -35,6 +35,8 @@ def flight(rig):
     """Simulator (paused, lockstep, as fast as possible) + autopilot, both discovered by the ground."""
     rig.start("lander_sim.node", "sim", {
         "scene": SCENE, "lockstep": True, "speed": 0.0, "start_paused": True, "publish_rate": 1.0 / DT_CONTROL,
+        # Every state must be answered whatever the machine's load: the timeout is only liveness.
+        "lockstep_timeout": 30.0,
     })
     rig.start("lander_autopilot.node", "autopilot", {"scene": SCENE, "controller": "combined"})
     wait_for_graph(rig.ground, subscribers={"/lander/state": 2, "/lander/throttle": 2},

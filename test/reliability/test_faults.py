@@ -37,6 +37,10 @@ def _start_flying(stack: Stack, watch: Watch, bag: Path) -> None:
     stack.recorder(bag, TOPICS)
     watch.wait_graph({"/lander/state": 3, "/lander/throttle": 3, "/lander/events": 2},
                      {"/lander/throttle": 2}, services=("reset", "resume"))
+    # Seen in our graph is not yet matched by the sim's writer: wait until it has matched all three
+    # state subscriptions (watch, autopilot, recorder), so state 1 of the reset reaches the bag.
+    watch.wait_for(lambda: int(watch.latest_diag().get("state_subscribers", 0)) >= 3, START_TIMEOUT,
+                   "the sim's state publisher matching watch, autopilot and recorder")
     assert watch.call("reset").success
     assert watch.call("resume").success
     n = len(watch.throttles)

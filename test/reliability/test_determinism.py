@@ -90,9 +90,11 @@ def _flight(bag: Path) -> dict[str, list[bytes]]:
     asked = {m.sequence for _, m in states if stamp_s(m.header.stamp) < FLIGHT_S - 1e-9}
     answers = [(r, m) for r, m in msgs["/lander/throttle"] if m.state_sequence in asked]
     assert sorted(m.state_sequence for _, m in answers) == sorted(asked), "every state answered exactly once"
-    status = [(r, m) for r, m in msgs["/autopilot/status"] if m.steps > 0 and stamp_s(m.header.stamp) <= FLIGHT_S]
-    # Status: every field but last_error, whose start-up warning quotes wall-clock seconds.
-    status_fields = [(m.header.stamp.sec, m.header.stamp.nanosec, m.controller, m.saturated, m.steps, m.rejected,
+    # Status of the flight proper (after the first control period): how many pre-reset states the
+    # autopilot answered while starting (its `steps` counter, and a wall-clock "state lost" warning
+    # in last_error) depends on start-up timing, not on the flight; everything else must match.
+    status = [(r, m) for r, m in msgs["/autopilot/status"] if 0.0 < stamp_s(m.header.stamp) <= FLIGHT_S]
+    status_fields = [(m.header.stamp.sec, m.header.stamp.nanosec, m.controller, m.saturated, m.rejected,
                       m.throttles.tobytes()) for _, m in status]
     return {"state": [r for r, _ in states], "throttle": [r for r, _ in answers], "status": status_fields}
 

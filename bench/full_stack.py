@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -148,6 +149,9 @@ class LoopFigures:
     latency_ms_p99: float
     latency_ms_max: float
     window_wall: tuple[float, float]
+    #: Longest gap between two states' receive times at the recorder while flying [ms]: the
+    #: longest stall a writer history must outlast (rate x stall, lander_sim.ros.delivery).
+    rx_gap_ms_max: float = float("nan")
 
 
 def loop_figures(bag_path: Path) -> LoopFigures:
@@ -179,13 +183,15 @@ def loop_figures(bag_path: Path) -> LoopFigures:
         for kv in diag.messages[-1].status[0].values:
             if kv.key == "lockstep_timeouts":
                 timeouts = int(kv.value)
-    # RTF over the stepping part: from the first state at t > 0 (after reset/resume republishes).
+    # RTF over the stepping part: from the first state at t > 0 (the reset's state 1 at t = 0 waits for the resume).
     moving = np.flatnonzero(t > 0.0)
     i0 = max(int(moving[0]) - 1, 0) if len(moving) else 0
     sim_s, wall_s = float(t[-1] - t[i0]), float(rx[-1] - rx[i0])
     q = (lambda p: float(np.percentile(lat, p)) * 1e3) if len(lat) else (lambda p: float("nan"))
+    flying = rx[i0 + 1:]  # from the first step on (the reset-to-resume wait is no stall)
+    gap = float(np.diff(flying).max()) * 1e3 if len(flying) > 1 else float("nan")
     return LoopFigures(sim_s, wall_s, sim_s / wall_s if wall_s > 0 else float("nan"), len(seq), missing,
-                       commands_missing, timeouts, q(50), q(99), q(100), (float(rx[i0]), float(rx[-1])))
+                       commands_missing, timeouts, q(50), q(99), q(100), (float(rx[i0]), float(rx[-1])), gap)
 
 
 def fly_recorded(scene: str, duration: float, compose: bool, bag: Path, env: dict[str, str] | None = None,
@@ -202,8 +208,12 @@ def fly_recorded(scene: str, duration: float, compose: bool, bag: Path, env: dic
     if sampler is not None:
         sampler.watch("launcher+recorder", proc.pid)
     lines: list[str] = []
-    timer = threading.Timer(timeout, proc.kill)
+    # Over time: SIGINT (the launcher stops its nodes and closes the bag), SIGKILL if that hangs
+    # (the nodes then die with the launcher: lander_tools.child).
+    timer = threading.Timer(timeout, proc.send_signal, args=(signal.SIGINT,))
+    killer = threading.Timer(timeout + 30.0, proc.kill)
     timer.start()
+    killer.start()
     try:
         assert proc.stdout is not None
         for line in proc.stdout:
@@ -216,6 +226,7 @@ def fly_recorded(scene: str, duration: float, compose: bool, bag: Path, env: dic
         rc = proc.wait()
     finally:
         timer.cancel()
+        killer.cancel()
     return rc, "".join(lines)
 
 
@@ -240,12 +251,12 @@ def format_table(rows: list[dict]) -> str:
         return ", ".join(f"{n} {r['cpu_percent'][n]:.0f}%" for n in names if n in r["cpu_percent"])
 
     head = (f"{'variant':<14} {'sim s':>6} {'wall s':>6} {'RTF':>6} {'lat p50':>8} {'lat p99':>8} {'lat max':>8} "
-            f"{'lost st':>7} {'lost cmd':>8} {'ls t/o':>6}  CPU per process (% of one core)")
+            f"{'rx gap':>8} {'lost st':>7} {'lost cmd':>8} {'ls t/o':>6}  CPU per process (% of one core)")
     out = [head, "-" * len(head)]
     for r in rows:
         out.append(f"{r['variant']:<14} {r['sim_s']:6.1f} {r['wall_s']:6.1f} {r['rtf']:6.1f} "
                    f"{r['latency_ms_p50']:6.2f}ms {r['latency_ms_p99']:6.2f}ms {r['latency_ms_max']:6.2f}ms "
-                   f"{r['states_missing']:7d} {r['commands_missing']:8d} "
+                   f"{r['rx_gap_ms_max']:6.1f}ms {r['states_missing']:7d} {r['commands_missing']:8d} "
                    f"{'?' if r['lockstep_timeouts'] is None else r['lockstep_timeouts']:>6}  {cpu(r)}")
     return "\n".join(out)
 
@@ -267,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{os.cpu_count()} cores")
     print(format_table(rows))
     print("latency: recorder receive time of the command answering state N minus that of state N; "
-          "lost st: state sequence gaps in the bag; lost cmd: states without their command; "
+          "rx gap: longest gap between states received by the recorder; lost st: state sequence gaps in the bag; lost cmd: states without their command; "
           "ls t/o: sim's lockstep_timeouts (last diagnostics)")
     if a.json:
         a.json.write_text(json.dumps(rows, indent=2))

@@ -2,7 +2,8 @@
 
 Error against a closed form where one exists (Kepler orbit), otherwise against the adaptive
 method at tolerance 1e-12; cost as derivative evaluations and wall time. A second table
-measures the long-run energy and |L_W| drift of each method on the torque-free asymmetric top.
+measures the long-run energy and |L_W| drift of each method on the torque-free asymmetric top;
+a third what it costs the adaptive method to meet a *global* tolerance on one Kepler orbit.
 
     python bench/integrators.py [--json FILE] [--out DIR] [--quick]
 """
@@ -135,6 +136,84 @@ def long_run_drift(quick: bool) -> list[dict]:
     return rows
 
 
+def global_tolerance(quick: bool) -> list[dict]:
+    """One Kepler orbit in one call: global error / tol of both error controls, and their cost.
+
+    Units GM = a = 1 (period 2 pi), so one scalar ``rtol = atol = tol`` fits every component;
+    the error is the global-mode tolerance's own norm, ``max_i |y_i - exact_i| / (tol + tol |y_i|)``
+    over position and velocity. ``in 50 calls``: the global mode with the orbit cut into 50
+    calls, each bounded on its own (the orbit's error is then not). ``cheapest local`` is the
+    loosest local tolerance on the grid tol * 10^(-j/4) whose orbit meets ``tol``: found against
+    the closed form, which a user does not have, so it is the least that meeting ``tol`` can
+    cost with this pair.
+    """
+    tols = [1e-6, 1e-8] if quick else [1e-6, 1e-8, 1e-10]
+    eccs = [0.3] if quick else [0.0, 0.3, 0.8]
+    rows: list[dict] = []
+    for e in eccs:
+        r0, v0 = kepler_state(0.0, 1.0, 1.0, e)
+        y0 = pack(r0, v0, np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), 0.0)
+        exact = np.concatenate(kepler_state(2.0 * math.pi, 1.0, 1.0, e))
+
+        def run(tol: float, local: float, control: str, calls: int = 1,
+                y0: np.ndarray = y0, exact: np.ndarray = exact) -> tuple[float, int, object]:
+            """(error in tol's norm, evaluations, integrator): one orbit in ``calls`` calls at local tolerance ``local``."""
+            integ = make("adaptive", rtol=local, atol=local, error_control=control)
+            y, _, ev = C.run_fixed(integ, C.point_orbit(1.0), y0, 2.0 * math.pi / calls, calls)
+            return float(np.max(np.abs(y[0:6] - exact) / (tol + tol * np.abs(y[0:6])))), ev, integ
+
+        for tol in tols:
+            loc, loc_ev, _ = run(tol, tol, "local")
+            glob, glob_ev, g = run(tol, tol, "global")
+            # The same orbit published 50 times: each call meets tol, the orbit need not.
+            glob50, glob50_ev, _ = run(tol, tol, "global", calls=50)
+            cheapest = (math.nan, 0)
+            for j in range(17):
+                tau = tol * 10.0 ** (-j / 4)
+                if tau < 1e-14:  # the controller's round-off floor
+                    break
+                err, ev, _ = run(tol, tau, "local")
+                if err <= 1.0:
+                    cheapest = (tau, ev)
+                    break
+            rows.append(dict(ecc=e, tol=tol, local_error=loc, local_evals=loc_ev, global_error=glob, global_bound=g.global_error,
+                             global_passes=g.passes, global_evals=glob_ev, global_50_calls_error=glob50, global_50_calls_evals=glob50_ev,
+                             cheapest_local_tol=cheapest[0], cheapest_local_evals=cheapest[1]))
+    return rows
+
+
+def bound_margin(quick: bool) -> dict:
+    """How far the global mode's reported bound is above the true error of the state it returns.
+
+    Kepler orbits (GM = a = 1) over a grid of eccentricities, spans and tolerances, one call
+    each; ratio = true error / bound in the tolerance's norm. The bound holds while the ratio
+    is <= 1 (asymptotic theory: 1/31); the tolerance is met while the true error is <= 1.
+    """
+    eccs = [0.0, 0.3, 0.8] if quick else [0.0, 0.1, 0.3, 0.6, 0.8]
+    spans = [1.0] if quick else [0.37, 1.0, 2.5]
+    tols = [1e-5, 1e-7, 1e-9] if quick else [10.0**-k for k in range(4, 11)]
+    ratios: list[float] = []
+    worst_error = missed_bound = missed_tol = reported = 0.0
+    for e in eccs:
+        r0, v0 = kepler_state(0.0, 1.0, 1.0, e)
+        y0 = pack(r0, v0, np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), 0.0)
+        for span in spans:
+            T = span * 2.0 * math.pi
+            exact = np.concatenate(kepler_state(T, 1.0, 1.0, e))
+            for tol in tols:
+                integ = make("adaptive", rtol=tol, atol=tol, error_control="global")
+                y, _, _ = C.run_fixed(integ, C.point_orbit(1.0), y0, T, 1)
+                err = float(np.max(np.abs(y[0:6] - exact) / (tol + tol * np.abs(y[0:6]))))
+                ratios.append(err / integ.global_error)
+                worst_error = max(worst_error, err)
+                missed_bound += err > integ.global_error
+                missed_tol += err > 1.0
+                reported += integ.global_error > 1.0  # a miss the run itself reports
+    return dict(runs=len(ratios), ratio_min=min(ratios), ratio_median=float(np.median(ratios)), ratio_max=max(ratios),
+                worst_error=worst_error, bound_missed=int(missed_bound), tolerance_missed=int(missed_tol), reported_missed=int(reported),
+                eccentricities=eccs, orbits=spans, tolerances=tols)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     rows = work_precision(args.quick)
@@ -146,7 +225,24 @@ def main(argv: list[str] | None = None) -> int:
     print(C.table(f"long-run drift: torque-free asymmetric top I=(1,2,3), w0=(0.01,2,0.01) rad/s, {drift[0]['steps']} steps of {drift[0]['dt']} s",
                   ["method", "max dE/E", "first 10%", "last 10%", "max dL_W/L", "max | |q|-1 |"],
                   [[r["method"], r["energy_drift"], r["first_tenth"], r["last_tenth"], r["momentum_drift"], r["quat_norm_error"]] for r in drift]))
-    C.write_json(args.json, {"work_precision": rows, "long_run_drift": drift})
+    glob = global_tolerance(args.quick)
+    print(C.table("global tolerance: one Kepler orbit (GM = a = 1) in one call; error = max_i |dy_i| / (tol + tol |y_i|), r and v",
+                  ["e", "tol", "local: error", "evals", "global: error", "bound", "passes", "evals", "in 50 calls: error", "evals",
+                   "cheapest local tol", "evals"],
+                  [[r["ecc"], r["tol"], r["local_error"], r["local_evals"], r["global_error"], r["global_bound"], r["global_passes"],
+                    r["global_evals"], r["global_50_calls_error"], r["global_50_calls_evals"], r["cheapest_local_tol"], r["cheapest_local_evals"]]
+                   for r in glob]))
+    for e in dict.fromkeys(r["ecc"] for r in glob):
+        sub = [r for r in glob if r["ecc"] == e]
+        slope = np.polyfit(np.log10([r["tol"] for r in sub]), np.log10([r["local_error"] * r["tol"] for r in sub]), 1)[0]
+        print(f"local mode, e = {e}: global error ~ tol^{slope:.2f}")
+    margin = bound_margin(args.quick)
+    print(f"\nglobal mode bound, {margin['runs']} orbits (e {margin['eccentricities']}, {margin['orbits']} periods, tol "
+          f"{margin['tolerances'][0]:g}..{margin['tolerances'][-1]:g}): true error / bound min {margin['ratio_min']:.3g}, "
+          f"median {margin['ratio_median']:.3g}, max {margin['ratio_max']:.3g}; largest true error / tol {margin['worst_error']:.3g}; "
+          f"bound missed {margin['bound_missed']}, tolerance missed {margin['tolerance_missed']} "
+          f"(reported as missed by the run: {margin['reported_missed']})\n")
+    C.write_json(args.json, {"work_precision": rows, "long_run_drift": drift, "global_tolerance": glob, "global_bound_margin": margin})
     if args.out:
         plt = C.pyplot()
         probs = list(dict.fromkeys(r["problem"] for r in rows))

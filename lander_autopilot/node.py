@@ -17,12 +17,14 @@ One control step, once per state the simulator publishes (it publishes at the co
 
 Swapping the controller while flying: service ``/autopilot/switch_controller``
 (``lander_interfaces/srv/SwitchController``) or an atomic change of the parameters
-``controller`` and ``controller_params``. The new controller is built and checked first, in the
-service's (or parameter service's) own executor thread while the old controller keeps answering
-states in the control thread (a multi-threaded executor, one callback group each); it is then
-installed under the lock that one control step holds, so the boundary falls between two steps,
-and a ``FlightEvent`` ``CONTROLLER_SWITCHED`` goes to ``/lander/events``. python-control is
-imported and the design path warmed up in a background thread at start-up. A refused change
+``controller`` and ``controller_params``. The new controller is built and checked completely
+before it is installed between two control steps, and a ``FlightEvent`` ``CONTROLLER_SWITCHED``
+goes to ``/lander/events``. The node spins a single-threaded executor; the switch service builds
+in a worker thread while the old controller keeps answering states (its callback awaits the
+build), a parameter change builds in the executor's thread (the control loop waits for the design,
+tens of milliseconds). rclpy's MultiThreadedExecutor is not used: on these wheels it woke ~6000
+times a second with nothing to do and cut the full stack's speed tenfold (docs/autopilot_node.md). python-control is
+imported and the design path warmed up at start-up, before the node answers anything. A refused change
 leaves the running controller flying. See docs/autopilot_node.md. No control law and no physics here.
 """
 from __future__ import annotations
@@ -30,18 +32,20 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from typing import Any, Callable
 
 import rclpy
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 
@@ -76,12 +80,8 @@ _ROS_BUILTIN = {"use_sim_time", "start_type_description_service"}
 
 
 #: Executor threads: control (states, demand, watchdog), the switch service, the parameter services.
-EXECUTOR_THREADS = 3
-
-
 class AutopilotNode(Node):
-    """The autopilot node. Build it, then spin it in a :class:`MultiThreadedExecutor` of
-    :data:`EXECUTOR_THREADS` threads (:func:`make_executor`) so a controller build never delays a state."""
+    """The autopilot node. Build it, then spin it in :func:`make_executor`'s executor."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -99,25 +99,32 @@ class AutopilotNode(Node):
         params_text = self._declare("controller_params", dump_controller_params(wanted.parameters))
         demand = self._declare("demand_altitude", wanted.demand_altitude, dynamic=True)
         self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT, dynamic=True))
+        # Before any subscription or timer exists: importing python-control holds the GIL for
+        # seconds in stretches, and in a background thread it starved the control steps, so the
+        # first states of a lockstep flight waited out the simulator's timeout (measured: 10 states
+        # unanswered in a soak). Done here, it only lengthens the start-up, which everyone waits for.
+        self._warm_up(scene)
         self.slot = ControllerSlot(
             build_choice(scene, controller, parse_controller_params(params_text)), Demand(altitude=_number(demand))
         )
 
-        # A validated change waits here between the parameter callbacks of one set-parameters call;
-        # per thread, since the switch service and the parameter services may run concurrently.
+        # A validated change waits here between the parameter callbacks of one set-parameters call.
         self._pending = threading.local()
         #: Held by one control step, a swap, and every status/event publication: a swap falls between steps.
         self._lock = threading.RLock()
+        #: (scene, controller, controller_params) -> controller built by the switch service's worker
+        #: thread (or the ValueError that refused it), taken by the set-parameters check that follows.
+        self._prebuilt: tuple[tuple[str, str, str], Any] | None = None
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
 
-        control = MutuallyExclusiveCallbackGroup()  # states, demands and the watchdog, in order
         self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", OUTPUT_QOS)
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
-        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS, callback_group=control)
-        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS, callback_group=control)
-        # Own group: a build (python-control design) runs here while states are answered.
+        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
+        self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
+        # Own group: while a switch awaits its build, the default group (states, demands, watchdog)
+        # stays free to run.
         self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch,
                             callback_group=MutuallyExclusiveCallbackGroup())
 
@@ -129,17 +136,14 @@ class AutopilotNode(Node):
         self._last_state_wall: float | None = None
         self._state_lost = False
         self._next_lost_report = 0.0
-        self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME),
-                          callback_group=control)
-        self._warm = threading.Thread(target=self._warm_up, args=(scene,), name="design-warm-up", daemon=True)
-        self._warm.start()
+        self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
         )
 
     def _warm_up(self, scene: str) -> None:
-        """Import python-control and run one design, off the executor (the first import takes
-        seconds), so the first switch to a designed controller only pays for its own design."""
+        """Import python-control and run one design at start-up (the first import takes seconds),
+        so the first switch to a designed controller only pays for its own design."""
         t0 = time.monotonic()
         try:
             import control  # noqa: F401
@@ -191,7 +195,15 @@ class AutopilotNode(Node):
         # a refusal is counted, logged and announced by _on_set_parameters.
         self.set_parameters([Parameter("demand_altitude", Parameter.Type.DOUBLE, float(msg.data))])
 
-    def _srv_switch(self, request: SwitchController.Request, response: SwitchController.Response):
+    async def _srv_switch(self, request: SwitchController.Request, response: SwitchController.Response):
+        # The build (a python-control design: tens of ms) runs in a worker thread; this callback
+        # waits for it as a task of the executor, which meanwhile keeps answering states.
+        key = (self.get_parameter("scene").value, request.controller, request.parameters_yaml)
+        try:
+            self._prebuilt = (key, await _in_thread(lambda: _build_or_error(*key), self.executor.wake))
+        except Exception as exc:  # noqa: BLE001 - a failing plug-in build must not take the node down
+            self._prebuilt = (key, ValueError(f"building controller {request.controller!r} failed: "
+                                              f"{type(exc).__name__}: {exc}"))
         old = self.slot.name
         result = self.set_parameters_atomically([
             Parameter("controller", Parameter.Type.STRING, request.controller),
@@ -203,22 +215,20 @@ class AutopilotNode(Node):
         return response
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate a change; build a new controller completely before anything is swapped.
-
-        Runs in the thread of the service that sets the parameters, never the control thread:
-        the old controller answers states meanwhile.
-        """
+        """Validate a change; build a new controller completely before anything is swapped
+        (or take the one the switch service built for exactly these values)."""
         pending = self._pending
         pending.choice = pending.demand = pending.timeout = None
         new = {p.name: p.value for p in params if p.name in PARAMETER_NAMES}
         try:
             if new.keys() & CONTROLLER_PARAMETERS:
                 value = {n: new.get(n, self.get_parameter(n).value) for n in CONTROLLER_PARAMETERS}
-                pending.choice = build_choice(
-                    check_string("scene", value["scene"]),
-                    check_string("controller", value["controller"]),
-                    parse_controller_params(value["controller_params"]),
-                )
+                key = (value["scene"], value["controller"], value["controller_params"])
+                prebuilt, self._prebuilt = self._prebuilt, None
+                built = prebuilt[1] if prebuilt is not None and prebuilt[0] == key else _build_or_error(*key)
+                if isinstance(built, ValueError):
+                    raise built
+                pending.choice = built
             if "demand_altitude" in new:
                 pending.demand = _number(new["demand_altitude"])
                 ControllerSlot.check_demand_altitude(pending.demand)
@@ -313,13 +323,35 @@ def _number(value) -> float:
     return float(value)
 
 
-def _interrupt() -> None:
-    raise KeyboardInterrupt
+def make_executor(context=None) -> SingleThreadedExecutor:
+    """The executor the node needs: one thread; a switch's build runs in a worker (:func:`_in_thread`)."""
+    return SingleThreadedExecutor(context=context)
 
 
-def make_executor(context=None) -> MultiThreadedExecutor:
-    """The executor the node needs: one thread per callback group (control, switch, parameters)."""
-    return MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=context)
+def _build_or_error(scene: Any, controller: Any, params_text: Any) -> Any:
+    """The controller choice for these parameter values, or the ValueError that refuses them."""
+    try:
+        return build_choice(check_string("scene", scene), check_string("controller", controller),
+                            parse_controller_params(params_text))
+    except ValueError as exc:
+        return exc
+
+
+def _in_thread(work: Callable[[], Any], wake: Callable[[], None]) -> Future:
+    """Run ``work`` in a new daemon thread; an rclpy Future (awaitable in a callback) of its
+    result, or of its exception. ``wake`` (the executor's) is called when it is done: the
+    executor resumes the awaiting callback on its next pass, and nothing else may wake it."""
+    future: Future = Future()
+
+    def run() -> None:
+        try:
+            future.set_result(work())
+        except Exception as exc:  # noqa: BLE001 - handed to the awaiting callback
+            future.set_exception(exc)
+        wake()
+
+    threading.Thread(target=run, name="controller-build", daemon=True).start()
+    return future
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -332,16 +364,12 @@ def main(argv: list[str] | None = None) -> int:
         node = AutopilotNode()
         executor = make_executor()
         executor.add_node(node)
-        # A stop request interrupts spin() in this thread, which only waits and dispatches (control
-        # steps run in the pool's threads), so no step is cut short; then the pool finishes and the
-        # last messages are flushed. (spin_once with a timeout in a loop instead would busy-wait:
-        # the multi-threaded executor reuses its wait generator, whose timeout runs out once.)
-        install_stop_handlers(_interrupt)
-        try:
-            executor.spin()
-        except KeyboardInterrupt:
-            pass
-        executor.shutdown(timeout_sec=FLUSH_TIMEOUT)
+        # A stop request ends the loop between two callbacks (the watchdog timer wakes the wait at
+        # least every 0.1 s), so no control step is cut short; then the last messages are flushed.
+        stop = threading.Event()
+        install_stop_handlers(stop.set)
+        while not stop.is_set():
+            executor.spin_once()
         node.flush()
     except (ValueError, ParameterException) as exc:  # ConfigError, SceneError, ControllerError, DemandError
         print(f"autopilot_node: {exc}", file=sys.stderr)

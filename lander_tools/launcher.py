@@ -57,6 +57,8 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
+from lander_tools import child
+
 EXIT_OK = 0
 EXIT_CRASHED = 1
 EXIT_ERROR = 2
@@ -307,7 +309,6 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
     if plan.params_file is not None:
         files += ["--params-file", str(plan.params_file)]
     sim_file = _params_yaml(SIM_NODE, sim_params, folder)
-    py = sys.executable
     cmds = {}
     ap_args: list[str] = []
     if controller is not None:
@@ -319,12 +320,12 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
         ap_params.update(plan.autopilot_params)
         ap_args = ["--params-file", str(_params_yaml(AUTOPILOT_NODE, ap_params, folder))]
     if plan.compose and controller is not None:
-        cmds["composed"] = [py, "-m", "lander_tools.launcher", "--composed", "--ros-args", *files,
-                            "--params-file", str(sim_file), *ap_args]
+        cmds["composed"] = child.command("lander_tools.launcher", ["--composed", "--ros-args", *files,
+                                                                   "--params-file", str(sim_file), *ap_args])
     else:
-        cmds["sim"] = [py, "-m", "lander_sim.node", "--ros-args", *files, "--params-file", str(sim_file)]
+        cmds["sim"] = child.command("lander_sim.node", ["--ros-args", *files, "--params-file", str(sim_file)])
         if controller is not None:
-            cmds["autopilot"] = [py, "-m", "lander_autopilot.node", "--ros-args", *files, *ap_args]
+            cmds["autopilot"] = child.command("lander_autopilot.node", ["--ros-args", *files, *ap_args])
     return cmds
 
 

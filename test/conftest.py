@@ -2,8 +2,11 @@
 
 At import (before any test creates a ROS context) this run gets its own ROS_DOMAIN_ID in 1..101
 and localhost-only discovery, so parallel runs and other engineers' nodes never cross-talk; child
-processes inherit both through the environment. At session end Fast DDS shared-memory files of
-dead processes are removed.
+processes inherit both through the environment. Each test module then gets a fresh domain of its
+own, so nodes a failing test leaves behind cannot disturb the next module; at the module's end any
+process still in its domain is given 5 s to exit, then killed, and the module's last test errors
+naming it (a leaked node is a defect). At session end Fast DDS shared-memory files of dead
+processes are removed.
 
 Fixtures for other tests:
   ros_context   a fresh rclpy Context, initialised for the test and shut down after it
@@ -14,6 +17,7 @@ Helpers: ``import rosutil`` (wait_for, ChildProcess, clean_stale_fastdds_shm).
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 from dataclasses import dataclass
@@ -25,6 +29,8 @@ import pytest
 import rosutil
 
 ROS_DOMAIN_ID = rosutil.isolate_middleware()
+rosutil.clean_stale_fastdds_shm()  # before any participant could open a dead one (see its docstring)
+_module_seeds = itertools.count(ROS_DOMAIN_ID)  # claim_domain_id maps the seed into 1..101
 REPO_ROOT = Path(__file__).resolve().parent.parent
 TEST_DIR = Path(__file__).resolve().parent
 
@@ -53,6 +59,23 @@ def pytest_report_header(config: pytest.Config) -> str:
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     rosutil.clean_stale_fastdds_shm()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def module_ros_domain() -> Iterator[int]:
+    """A domain of the module's own (see the module docstring); yields its id."""
+    # Walk on from the last module's id, so consecutive modules never share one.
+    domain = rosutil.claim_domain_id(seed=next(_module_seeds))
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    try:
+        yield domain
+    finally:
+        os.environ["ROS_DOMAIN_ID"] = str(ROS_DOMAIN_ID)
+        leaked = rosutil.reap_domain(domain)
+        rosutil.clean_stale_fastdds_shm()  # a killed node's ports must not hang the next module
+        rosutil.release_domain_id(domain)
+        if leaked:
+            raise RuntimeError(f"processes left running in ROS_DOMAIN_ID={domain} (killed):\n  " + "\n  ".join(leaked))
 
 
 @pytest.fixture

@@ -20,7 +20,7 @@ from typing import Any, Callable, Sequence
 # ephemeral port range. 0 is what an unconfigured ROS process uses: tests never share it.
 DOMAIN_MIN, DOMAIN_MAX = 1, 101
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"
-_held_locks: list[Any] = []  # keeps the claimed domain's lock file open for the process's life
+_held_locks: dict[int, Any] = {}  # domain -> its open lock file (held until released or exit)
 
 
 def claim_domain_id(seed: int | None = None) -> int:
@@ -41,9 +41,67 @@ def claim_domain_id(seed: int | None = None) -> int:
         except OSError:
             f.close()
             continue
-        _held_locks.append(f)
+        _held_locks[domain] = f
         return domain
     raise RuntimeError(f"all ROS domain ids {DOMAIN_MIN}..{DOMAIN_MAX} are taken by other test runs")
+
+
+def release_domain_id(domain: int) -> None:
+    """Give back a domain id taken by :func:`claim_domain_id` (no-op if not held)."""
+    f = _held_locks.pop(domain, None)
+    if f is not None:
+        f.close()
+
+
+#: Set in this process's environment (so inherited by everything it starts): which test run a
+#: process belongs to, so one run never reaps another run's processes in a reused domain id.
+RUN_MARKER = "MARS_LANDER_TEST_RUN"
+os.environ.setdefault(RUN_MARKER, str(os.getpid()))
+
+
+def processes_in_domain(domain: int) -> list[Any]:
+    """Live processes of this user and this test run, other than this one, whose environment has
+    ROS_DOMAIN_ID=domain (psutil.Process objects): the nodes and tools a test started there. multiprocessing's own
+    helpers (resource tracker, fork server), which live as long as this process, are not counted."""
+    import psutil
+
+    me = os.getpid()
+    found = []
+    for p in psutil.process_iter(["pid", "uids"]):
+        if p.pid == me or p.info["uids"] is None or p.info["uids"].real != os.getuid():
+            continue
+        try:
+            if any("multiprocessing." in part for part in p.cmdline()[:4]):
+                continue
+            env = p.environ()
+            if (env.get("ROS_DOMAIN_ID") == str(domain) and env.get(RUN_MARKER) == os.environ[RUN_MARKER]
+                    and p.status() != psutil.STATUS_ZOMBIE):
+                found.append(p)
+        except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
+            continue
+    return found
+
+
+def reap_domain(domain: int, grace: float = 5.0) -> list[str]:
+    """Wait up to ``grace`` s for the processes left in ``domain`` to exit, then kill them.
+
+    Returns a description of each one that had to be killed (empty: nothing leaked).
+    """
+    import psutil
+
+    left = processes_in_domain(domain)
+    if not left:
+        return []
+    _, alive = psutil.wait_procs(left, timeout=grace)
+    killed = []
+    for p in alive:
+        try:
+            killed.append(f"pid {p.pid}: {' '.join(p.cmdline())[:200]}")
+            p.kill()
+        except psutil.NoSuchProcess:
+            pass
+    psutil.wait_procs(alive, timeout=grace)
+    return killed
 
 
 def isolate_middleware(env: dict[str, str] | None = None, domain_id: int | None = None) -> int:
@@ -61,29 +119,47 @@ def isolate_middleware(env: dict[str, str] | None = None, domain_id: int | None 
 def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float = 2.0) -> list[Path]:
     """Remove Fast DDS shared-memory files left by processes that died (e.g. SIGKILLed nodes).
 
-    Each Fast DDS segment ``fastdds_X`` has a lock file ``fastdds_X_el`` that its live users hold
-    with flock; if we can take an exclusive lock on it nobody alive uses it, so ``X``, ``X_el`` and
-    the port mutex ``sem.X_mutex`` can go (the same rule as ``fastdds shm clean``). Files younger
-    than ``min_age_s`` are left alone: their creator may not have locked them yet.
+    Each segment ``fastdds_<16 hex>`` and each port ``fastdds_port<N>`` has a lock file ``..._el``
+    (exclusive user) or ``..._sl`` (shared listeners) that its live users hold with flock; if
+    none of them is held, nobody alive uses it, so it goes with its lock files and the port mutex
+    ``sem.<name>_mutex`` (the rule of ``fastdds shm clean``). Unlike that tool, a port whose lock
+    file is missing altogether goes too: a process killed while creating a port leaves an empty,
+    never-initialised file, and every later participant that picks that port number spins forever
+    waiting for its initialisation (seen: the whole suite hung in ``Node()``). Files younger than
+    ``min_age_s`` are left alone: their creator may not have locked them yet.
     """
     removed: list[Path] = []
     shm = Path(shm_dir)
     now = time.time()
-    for el in shm.glob("fastdds_*_el"):
-        base = el.with_name(el.name[: -len("_el")])
+
+    def held(lock: Path) -> bool:
         try:
-            if now - el.stat().st_mtime < min_age_s or el.stat().st_uid != os.getuid():
-                continue
-            fd = os.open(el, os.O_RDONLY)
+            fd = os.open(lock, os.O_RDONLY)
         except OSError:
-            continue  # vanished meanwhile
+            return False  # no lock file: no live user
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return False
         except OSError:
-            continue  # held by a live process
+            return True
         finally:
             os.close(fd)
-        for f in (base, el, shm / f"sem.{base.name}_mutex"):
+
+    for base in shm.glob("fastdds_*"):
+        if base.name.endswith(("_el", "_sl")):
+            continue
+        try:
+            st = base.stat()
+        except OSError:
+            continue  # vanished meanwhile
+        if now - st.st_mtime < min_age_s or st.st_uid != os.getuid():
+            continue
+        locks = [base.with_name(base.name + sfx) for sfx in ("_el", "_sl")]
+        if not base.name.startswith("fastdds_port") and not any(lk.exists() for lk in locks):
+            continue  # a segment is always created with its lock: leave unknown files alone
+        if any(held(lk) for lk in locks):
+            continue
+        for f in (base, *locks, shm / f"sem.{base.name}_mutex"):
             try:
                 f.unlink()
                 removed.append(f)

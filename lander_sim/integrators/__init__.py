@@ -6,7 +6,8 @@ name                   order  method
 ``verlet``             2      velocity Verlet, seed 1 section 5 (the reference scheme)
 ``symplectic-euler``   1      semi-implicit Euler (kick, then drift with the new rates)
 ``rk4``                4      classical Runge-Kutta on the first-order form
-``adaptive``           5      Dormand-Prince 5(4), error control (``rtol``, ``atol``)
+``adaptive``           5      Dormand-Prince 5(4), ``rtol``/``atol`` bound the local error per
+                              step or (``error_control="global"``) the global error of a call
 ``geometric``          2      DLM rotor splitting + exponential map (|q| = 1 exactly)
 =====================  =====  ==========================================================
 

@@ -40,6 +40,9 @@ class HealthReport:
         Internal steps of the adaptive method (None for fixed-step methods).
     error_estimate : float | None
         The adaptive method's largest accepted normalised local error estimate (<= 1).
+    global_error_bound : float | None
+        In the adaptive method's ``error_control="global"`` mode: the largest bound of a call's
+        accumulated error, in units of the tolerance (<= 1 when every call met it; None otherwise).
     """
 
     samples: int
@@ -49,6 +52,7 @@ class HealthReport:
     accepted: int | None = None
     rejected: int | None = None
     error_estimate: float | None = None
+    global_error_bound: float | None = None
 
     def lines(self) -> list[str]:
         """Human-readable one-liners (for logs and bench output)."""
@@ -61,6 +65,8 @@ class HealthReport:
         ]
         if self.accepted is not None:
             out.append(f"adaptive steps    {self.accepted} accepted, {self.rejected} rejected, max error est {fmt(self.error_estimate)}")
+        if self.global_error_bound is not None:
+            out.append(f"global error      bound {fmt(self.global_error_bound)} x tolerance (max over calls)")
         return out
 
 
@@ -123,4 +129,6 @@ class HealthMonitor:
             accepted=accepted,
             rejected=getattr(integrator, "rejected", None) if accepted is not None else None,
             error_estimate=getattr(integrator, "max_error", None) if accepted is not None else None,
+            global_error_bound=(getattr(integrator, "max_global_error", None)
+                                if getattr(integrator, "error_control", None) == "global" else None),
         )

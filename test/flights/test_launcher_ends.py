@@ -1,5 +1,6 @@
 """How `lander fly` ends: the sim node killed mid-flight leaves a valid bag holding everything up
-to the kill and exit status 2; Ctrl-C stops the flight cleanly with a valid bag (status 130)."""
+to the kill and exit status 2; Ctrl-C stops the flight cleanly with a valid bag (status 130); a
+launcher killed outright takes its nodes with it (none is left flying on the domain)."""
 from __future__ import annotations
 
 import os
@@ -13,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import psutil
 
 from lander_tools.bagio import read_bag
 
@@ -101,3 +103,23 @@ def test_ctrl_c_stops_cleanly_with_a_valid_bag_and_status_130(tmp_path: Path) ->
     assert rc == 130, "".join(log)
     _check_prefix_bag(bag, 3.0)
     assert read_bag(bag).meta["outcome"] == "interrupted"
+
+
+def test_a_launcher_killed_outright_takes_its_nodes_with_it(tmp_path: Path) -> None:
+    # The nodes run in a session of their own (Ctrl-C reaches only the launcher); without
+    # lander_tools.child a SIGKILLed launcher left them flying, in lockstep at full speed.
+    proc, lines, _ = _start(tmp_path)
+    log: list[str] = []
+    try:
+        m = _wait_line(lines, r"pids (.*)$", log)
+        pids = [int(p) for p in re.findall(r"\d+", m.group(1))]
+        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
+        nodes = [psutil.Process(p) for p in pids]
+        proc.kill()
+        proc.wait(timeout=10)
+        # Each node gets SIGTERM from the kernel and exits cleanly; 30 s covers its 1 s flush.
+        _, alive = psutil.wait_procs(nodes, timeout=30.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert not alive, f"nodes still running after their launcher was killed: {alive}\n" + "".join(log)

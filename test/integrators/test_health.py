@@ -51,3 +51,11 @@ def test_a_run_that_blew_up_reports_infinite_drift_not_a_hidden_nan() -> None:
     y[10:13] = np.nan
     mon.observe(y)
     assert mon.report().energy_drift == float("inf")
+
+
+def test_the_global_error_bound_is_reported_in_global_mode_only() -> None:
+    assert _run("adaptive", n=20, rtol=1e-9, atol=1e-9).global_error_bound is None
+    rep = _run("adaptive", n=20, rtol=1e-9, atol=1e-9, error_control="global")
+    # Each 0.01 s call met its tolerance, so the largest bound over the calls is within it.
+    assert rep.global_error_bound is not None and 0.0 < rep.global_error_bound <= 1.0
+    assert any("global error" in line for line in rep.lines())

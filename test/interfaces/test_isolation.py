@@ -51,3 +51,25 @@ def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):
     assert not any(f.exists() for f in victim_files)
     assert all(f.exists() for f in survivor_files), "a live process's shm segment was removed"
     assert survivor.returncode is None
+
+
+def test_a_port_file_without_a_live_lock_is_removed_and_a_held_one_kept(tmp_path: Path):
+    # A process killed while creating a port leaves an empty file and no lock file; a participant
+    # that later picks that port spins forever waiting for it to be initialised.
+    import fcntl
+
+    dead = tmp_path / "fastdds_port7000"
+    dead.write_bytes(b"")
+    (tmp_path / "sem.fastdds_port7000_mutex").write_bytes(b"\0" * 32)
+    live = tmp_path / "fastdds_port7001"
+    live.write_bytes(b"\0" * 64)
+    lock = open(tmp_path / "fastdds_port7001_sl", "w")
+    fcntl.flock(lock, fcntl.LOCK_SH)  # a live shared listener
+    unknown = tmp_path / "fastdds_notes"  # neither a port nor a segment with a lock: not ours to judge
+    unknown.write_text("x")
+    try:
+        removed = rosutil.clean_stale_fastdds_shm(tmp_path, min_age_s=0.0)
+    finally:
+        lock.close()
+    assert set(removed) == {dead, tmp_path / "sem.fastdds_port7000_mutex"}
+    assert live.exists() and unknown.exists()

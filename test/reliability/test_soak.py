@@ -59,7 +59,9 @@ def _soak(tmp_path: Path, sim_seconds: float) -> None:
     answered = {m.state_sequence for m in b.messages("/lander/throttle")}
     unanswered = [int(s) for s, ti in zip(seq[start:], t) if 1.0 <= ti < t[-1] and int(s) not in answered]
     if f.states_missing or unanswered:
-        raise LostMessages(f"{f.states_missing} states missing from the bag; states without a command: {unanswered[:10]}")
+        warnings = "".join(line for line in out.splitlines(keepends=True) if "WARN" in line or "ERROR" in line)
+        raise LostMessages(f"{f.states_missing} states missing from the bag; states without a command: "
+                           f"{unanswered[:10]}; sim's lockstep timeouts: {f.lockstep_timeouts}\n{warnings[-3000:]}")
 
 
 class LostMessages(AssertionError):

@@ -42,8 +42,9 @@ def _soak(tmp_path: Path, sim_seconds: float) -> None:
     # Memory: growth per process from a quarter into the flight to its end, against the bound.
     w0, w1 = f.window_wall
     n_messages = 2 * len(states)
+    growths = {}
     for name, s in series.items():
-        growth = s.rss_at(w1) - s.rss_at(w0 + 0.25 * (w1 - w0))
+        growth = growths[name] = s.rss_at(w1) - s.rss_at(w0 + 0.25 * (w1 - w0))
         bound = SLACK_BYTES + INDEX_BYTES_PER_MESSAGE * n_messages
         assert growth < bound, f"{name}: RSS grew {growth / 2**20:.1f} MiB (bound {bound / 2**20:.1f} MiB)"
     # RTF steady: last quarter at least half the first. A per-tick cost growing with the flight
@@ -52,6 +53,11 @@ def _soak(tmp_path: Path, sim_seconds: float) -> None:
     q = len(t) // 4
     rtf_first = (t[q] - t[0]) / (rx[q] - rx[0])
     rtf_last = (t[-1] - t[-q]) / (rx[-1] - rx[-q])
+    # The figures (shown with -s; quoted in docs/reliability.md).
+    print(f"\nsoak {sim_seconds:.0f} s: {len(states)} states, wall {rx[-1] - rx[0]:.1f} s, RTF first quarter "
+          f"{rtf_first:.1f}, last {rtf_last:.1f}, lockstep timeouts {f.lockstep_timeouts}, RSS growth (last 3/4) "
+          + ", ".join(f"{n} {g / 2**20:+.1f} MiB" for n, g in growths.items())
+          + f" (bound {(SLACK_BYTES + INDEX_BYTES_PER_MESSAGE * n_messages) / 2**20:.1f} MiB)")
     assert rtf_last >= 0.5 * rtf_first, (rtf_first, rtf_last)
     # No lost messages: no gap in the state sequence, and every state of the flight proper (after
     # the first second: start-up race of `lander fly`, reported) has its command in the bag.
@@ -66,9 +72,6 @@ def _soak(tmp_path: Path, sim_seconds: float) -> None:
 
 class LostMessages(AssertionError):
     """The bag lacks messages the nodes sent (kept apart from memory and speed failures)."""
-
-
-# Intermittent: once 201 of 3001 states were missing from the bag at RTF 28 (reported).
 
 
 def test_soak_five_simulated_minutes(tmp_path: Path) -> None:

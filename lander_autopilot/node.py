@@ -34,19 +34,16 @@ import threading
 import time
 from typing import Any, Callable
 
-import rclpy
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 
 from lander_autopilot.controllers import Demand
@@ -65,7 +62,7 @@ from lander_autopilot.ros.config import (
     scene_autopilot,
 )
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
-from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, install_stop_handlers
+from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
@@ -355,32 +352,17 @@ def _in_thread(work: Callable[[], Any], wake: Callable[[], None]) -> Future:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or shutdown."""
-    # Our own SIGINT/SIGTERM handling (as the simulator's): the context stays up to flush the last
-    # commands to the subscribers before exit.
-    rclpy.init(args=sys.argv if argv is None else argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = AutopilotNode()
+    """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or SIGTERM."""
+
+    def spin(node: AutopilotNode, stopped: Callable[[], bool]) -> None:
+        # A stop request ends the loop between two callbacks (the watchdog timer wakes the wait at
+        # least every 0.1 s), so no control step is cut short.
         executor = make_executor()
         executor.add_node(node)
-        # A stop request ends the loop between two callbacks (the watchdog timer wakes the wait at
-        # least every 0.1 s), so no control step is cut short; then the last messages are flushed.
-        stop = threading.Event()
-        install_stop_handlers(stop.set)
-        while not stop.is_set():
+        while not stopped():
             executor.spin_once()
-        node.flush()
-    except (ValueError, ParameterException) as exc:  # ConfigError, SceneError, ControllerError, DemandError
-        print(f"autopilot_node: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+
+    return run_node_process("autopilot_node", sys.argv if argv is None else argv, AutopilotNode, spin)
 
 
 if __name__ == "__main__":

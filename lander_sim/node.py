@@ -22,19 +22,18 @@ from __future__ import annotations
 import math
 import sys
 import time
+from typing import Callable
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3Stamped
 from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterException, ParameterNotDeclaredException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.exceptions import ParameterNotDeclaredException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
@@ -42,7 +41,7 @@ from visualization_msgs.msg import MarkerArray
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import NODE_NAME, PARAMETERS, SCENE_SEED, ConfigError, check_parameter, check_params_file
-from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, install_stop_handlers
+from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
@@ -639,27 +638,13 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sim_node: {exc}", file=sys.stderr)
         return 2
-    # Our own SIGINT/SIGTERM handling: rclpy's would shut the context down at once, and then the
-    # last messages could not be flushed to the subscribers (see SimNode.flush).
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        node = SimNode()
-        install_stop_handlers(node.request_stop)
+
+    def spin(node: SimNode, _stopped: Callable[[], bool]) -> None:
         executor = make_executor()
         executor.add_node(node)
-        node.run(executor)
-        node.flush()
-    except (ConfigError, SceneError, ValueError, ParameterException) as exc:
-        print(f"sim_node: {exc}", file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+        node.run(executor)  # until node.request_stop() (called on SIGINT/SIGTERM)
+
+    return run_node_process("sim_node", argv, SimNode, spin)
 
 
 if __name__ == "__main__":

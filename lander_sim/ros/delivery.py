@@ -8,17 +8,23 @@ loop's topics), so both keep the same promises to a recorder:
 * :func:`flush`: before a node process exits, wait until its subscribers acknowledged what it
   published (a destroyed reliable writer drops whatever it has not delivered yet);
 * :func:`install_stop_handlers`: SIGINT/SIGTERM end the node's loop instead of rclpy shutting the
-  context down at once, which would make that flush impossible.
+  context down at once, which would make that flush impossible;
+* :func:`run_node_process`: the whole life of a node process built on those (both nodes' ``main``).
 """
 from __future__ import annotations
 
 import signal
+import sys
 import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+import rclpy
 from rclpy.duration import Duration
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 #: Writer history of every output. A reliable KEEP_LAST writer keeps its last ``depth`` messages for
 #: a subscriber that has not acknowledged them yet and drops older ones unseen, so the depth is the
@@ -61,3 +67,34 @@ def install_stop_handlers(request_stop: Callable[[], None]) -> None:
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, on_signal)
+
+
+def run_node_process(prog: str, argv: list[str], make_node: Callable[[], Any],
+                     spin: Callable[[Any, Callable[[], bool]], None]) -> int:
+    """A node process from start to exit; returns its exit status.
+
+    rclpy is initialised without its signal handlers (:func:`install_stop_handlers` instead), the
+    node is built, ``spin(node, stopped)`` runs it until ``stopped()`` (a SIGINT or SIGTERM), then
+    its last messages are flushed (``node.flush()``) before the context goes down. A bad
+    configuration (any ValueError or ParameterException while building: unknown parameter, bad
+    scene, ...) is one line ``prog: message`` on stderr and status 2.
+    """
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        node = make_node()
+        requests: list[bool] = []
+        request_stop = getattr(node, "request_stop", None)
+        install_stop_handlers(lambda: (requests.append(True), request_stop() if request_stop else None))
+        spin(node, lambda: bool(requests))
+        node.flush()
+    except (ValueError, ParameterException) as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

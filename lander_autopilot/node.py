@@ -105,10 +105,11 @@ class AutopilotNode(Node):
             build_choice(scene, controller, parse_controller_params(params_text)), Demand(altitude=_number(demand))
         )
 
-        # A validated change waits here between the parameter callbacks of one set-parameters call.
-        self._pending = threading.local()
-        #: Held by one control step, a swap, and every status/event publication: a swap falls between steps.
-        self._lock = threading.RLock()
+        # A validated change (controller choice, demand, state timeout; None: unchanged) waits here
+        # between the two parameter callbacks of one set-parameters call. Every callback runs in the
+        # executor's one thread, so a swap always falls between two control steps.
+        self._pending: tuple[Any, float | None, float | None] = (None, None, None)
+        self._stop = threading.Event()  # set by request_stop(): run() returns
         #: (scene, controller, controller_params) -> controller built by the switch service's worker
         #: thread (or the ValueError that refused it), taken by the set-parameters check that follows.
         self._prebuilt: tuple[tuple[str, str, str], Any] | None = None
@@ -138,6 +139,17 @@ class AutopilotNode(Node):
             f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
         )
 
+    def run(self, executor: SingleThreadedExecutor) -> None:
+        """Spin ``executor`` (holding this node) until :meth:`request_stop`. The stop falls between
+        two callbacks (the watchdog timer wakes the wait at least every 0.1 s), so no control step
+        is cut short."""
+        while not self._stop.is_set():
+            executor.spin_once()
+
+    def request_stop(self) -> None:
+        """End :meth:`run` (safe from a signal handler)."""
+        self._stop.set()
+
     def _warm_up(self, scene: str) -> None:
         """Import python-control and run one design at start-up (the first import takes seconds),
         so the first switch to a designed controller only pays for its own design."""
@@ -164,8 +176,7 @@ class AutopilotNode(Node):
         if self._state_lost:
             self._state_lost = False
             self.get_logger().info(f"state received again (sequence {msg.sequence})")
-        with self._lock:
-            self._control_step(msg)
+        self._control_step(msg)
 
     def _control_step(self, msg: LanderState) -> None:
         try:
@@ -214,8 +225,8 @@ class AutopilotNode(Node):
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate a change; build a new controller completely before anything is swapped
         (or take the one the switch service built for exactly these values)."""
-        pending = self._pending
-        pending.choice = pending.demand = pending.timeout = None
+        self._pending = (None, None, None)
+        choice = demand = timeout = None
         new = {p.name: p.value for p in params if p.name in PARAMETER_NAMES}
         try:
             if new.keys() & CONTROLLER_PARAMETERS:
@@ -225,40 +236,36 @@ class AutopilotNode(Node):
                 built = prebuilt[1] if prebuilt is not None and prebuilt[0] == key else _build_or_error(*key)
                 if isinstance(built, ValueError):
                     raise built
-                pending.choice = built
+                choice = built
             if "demand_altitude" in new:
-                pending.demand = _number(new["demand_altitude"])
-                ControllerSlot.check_demand_altitude(pending.demand)
+                demand = _number(new["demand_altitude"])
+                ControllerSlot.check_demand_altitude(demand)
             if "state_timeout" in new:
-                pending.timeout = check_state_timeout(new["state_timeout"])
+                timeout = check_state_timeout(new["state_timeout"])
         except ValueError as exc:
-            pending.choice = pending.demand = pending.timeout = None
             reason = str(exc)
-            with self._lock:
-                self._refuse(f"refused {', '.join(sorted(new))}: {reason}", self._last_stamp)
-                self._publish_status()
+            self._refuse(f"refused {', '.join(sorted(new))}: {reason}", self._last_stamp)
+            self._publish_status()
             return SetParametersResult(successful=False, reason=reason)
+        self._pending = (choice, demand, timeout)
         return SetParametersResult(successful=True)
 
     def _after_set_parameters(self, params: list[Parameter]) -> None:
-        """Apply a validated change under the control lock: between two control steps."""
-        pending = self._pending
-        choice, demand, timeout = (getattr(pending, k, None) for k in ("choice", "demand", "timeout"))
-        pending.choice = pending.demand = pending.timeout = None
-        with self._lock:
-            if choice is not None:
-                seq = self.slot.last_sequence
-                old = self.slot.swap(choice)
-                detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
-                          f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
-                self.get_logger().info(detail)
-                self._publish_event(FlightEvent.CONTROLLER_SWITCHED, detail, [float(seq)])
-                self._publish_status()
-            if demand is not None:
-                self.slot.set_demand_altitude(demand)
-                self.get_logger().info(f"demand altitude {demand} m")
-            if timeout is not None:
-                self._state_timeout = timeout
+        """Apply a validated change (between two control steps: one thread runs both)."""
+        (choice, demand, timeout), self._pending = self._pending, (None, None, None)
+        if choice is not None:
+            seq = self.slot.last_sequence
+            old = self.slot.swap(choice)
+            detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
+                      f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
+            self.get_logger().info(detail)
+            self._publish_event(FlightEvent.CONTROLLER_SWITCHED, detail, [float(seq)])
+            self._publish_status()
+        if demand is not None:
+            self.slot.set_demand_altitude(demand)
+            self.get_logger().info(f"demand altitude {demand} m")
+        if timeout is not None:
+            self._state_timeout = timeout
 
     # --- health --------------------------------------------------------------------------------
 
@@ -274,10 +281,9 @@ class AutopilotNode(Node):
         if now >= self._next_lost_report:
             self._next_lost_report = now + self._state_timeout
             what = "no state received yet" if self._last_state_wall is None else "state lost"
-            with self._lock:
-                self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
-                self.get_logger().warning(self.slot.last_error)
-                self._publish_status()
+            self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
+            self.get_logger().warning(self.slot.last_error)
+            self._publish_status()
 
     def _refuse(self, reason: str, stamp) -> None:
         """Count, log (throttled) and announce a refused input; a repeated reason is announced once."""
@@ -352,17 +358,8 @@ def _in_thread(work: Callable[[], Any], wake: Callable[[], None]) -> Future:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point ``autopilot_node``: build the node and spin it until Ctrl-C or SIGTERM."""
-
-    def spin(node: AutopilotNode, stopped: Callable[[], bool]) -> None:
-        # A stop request ends the loop between two callbacks (the watchdog timer wakes the wait at
-        # least every 0.1 s), so no control step is cut short.
-        executor = make_executor()
-        executor.add_node(node)
-        while not stopped():
-            executor.spin_once()
-
-    return run_node_process("autopilot_node", sys.argv if argv is None else argv, AutopilotNode, spin)
+    """Entry point ``autopilot_node``: build the node and run it until Ctrl-C or SIGTERM."""
+    return run_node_process("autopilot_node", sys.argv if argv is None else argv, AutopilotNode, make_executor)
 
 
 if __name__ == "__main__":

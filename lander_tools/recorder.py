@@ -120,6 +120,7 @@ class Recorder:
     def __init__(self, owner: Any, config: RecorderConfig, discovery_period: float = 0.1) -> None:
         import rclpy
 
+        from lander_sim.ros.delivery import events_executor
         from lander_tools.bagio import lander_typestore
 
         context = getattr(owner, "context", owner)
@@ -134,7 +135,7 @@ class Recorder:
         self.node = rclpy.create_node(self.NODE_NAME, context=context)
         self._stopping = threading.Event()
         self._opened = threading.Event()
-        self._executor = _make_executor(context)
+        self._executor = events_executor(context)
         self._executor.add_node(self.node)
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
@@ -273,17 +274,6 @@ class Recorder:
         lines += [f"  {t:<{width}}  {n:>8d} messages" for t, n in sorted(self.counts.items())]
         lines.append(f"  {'total':<{width}}  {sum(self.counts.values()):>8d} messages")
         return "\n".join(lines)
-
-
-def _make_executor(context: Any) -> Any:
-    """rclpy's C++ EventsExecutor where available (cheap per message), else the standard one."""
-    try:
-        from rclpy.experimental import EventsExecutor
-    except ImportError:
-        from rclpy.executors import SingleThreadedExecutor
-
-        return SingleThreadedExecutor(context=context)
-    return EventsExecutor(context=context)
 
 
 def node_alive(node: Any, full_name: str) -> bool:

@@ -9,7 +9,8 @@ loop's topics), so both keep the same promises to a recorder:
   published (a destroyed reliable writer drops whatever it has not delivered yet);
 * :func:`install_stop_handlers`: SIGINT/SIGTERM end the node's loop instead of rclpy shutting the
   context down at once, which would make that flush impossible;
-* :func:`run_node_process`: the whole life of a node process built on those (both nodes' ``main``).
+* :func:`run_node_process`: the whole life of a node process built on those (both nodes' ``main``);
+* :func:`events_executor`: the cheapest executor per message, for a loop that needs one thread.
 """
 from __future__ import annotations
 
@@ -69,24 +70,37 @@ def install_stop_handlers(request_stop: Callable[[], None]) -> None:
         signal.signal(sig, on_signal)
 
 
+def events_executor(context: Any = None) -> Any:
+    """rclpy's C++ EventsExecutor where this rclpy has it (about 3x cheaper per pass than the
+    standard executor, and ~26 us of Python per message against ~700 us: measured), else the
+    standard single-threaded one. ``context``: None for the default context."""
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:
+        from rclpy.executors import SingleThreadedExecutor
+
+        return SingleThreadedExecutor(context=context)
+    return EventsExecutor(context=context)
+
+
 def run_node_process(prog: str, argv: list[str], make_node: Callable[[], Any],
-                     spin: Callable[[Any, Callable[[], bool]], None]) -> int:
+                     make_executor: Callable[[], Any]) -> int:
     """A node process from start to exit; returns its exit status.
 
-    rclpy is initialised without its signal handlers (:func:`install_stop_handlers` instead), the
-    node is built, ``spin(node, stopped)`` runs it until ``stopped()`` (a SIGINT or SIGTERM), then
-    its last messages are flushed (``node.flush()``) before the context goes down. A bad
-    configuration (any ValueError or ParameterException while building: unknown parameter, bad
-    scene, ...) is one line ``prog: message`` on stderr and status 2.
+    rclpy is initialised without its signal handlers; SIGINT/SIGTERM call the node's
+    ``request_stop()`` (:func:`install_stop_handlers`), which ends its ``run(executor)``; then its
+    last messages are flushed (``flush()``) before the context goes down. A ValueError or
+    ParameterException out of the node (a bad configuration: unknown parameter, bad scene, ...)
+    is one line ``prog: message`` on stderr and status 2.
     """
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = make_node()
-        requests: list[bool] = []
-        request_stop = getattr(node, "request_stop", None)
-        install_stop_handlers(lambda: (requests.append(True), request_stop() if request_stop else None))
-        spin(node, lambda: bool(requests))
+        install_stop_handlers(node.request_stop)
+        executor = make_executor()
+        executor.add_node(node)
+        node.run(executor)
         node.flush()
     except (ValueError, ParameterException) as exc:
         print(f"{prog}: {exc}", file=sys.stderr)

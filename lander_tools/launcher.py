@@ -550,11 +550,10 @@ def _control_period(executor: Any, sup: _Supervisor, plan: FlightPlan) -> float:
 
 def _arm(executor: Any, sup: _Supervisor, t: float) -> None:
     """Set the sim's ``pause_at`` to ``t`` [s] (< 0: none): it pauses on reaching that instant."""
-    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
 
-    req = SetParameters.Request(parameters=[Parameter(
-        name="pause_at", value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(t)))])
+    req = SetParameters.Request(parameters=[Parameter("pause_at", value=float(t)).to_parameter_msg()])
     res = _call(executor, sup.cli_sim_set, req, STARTUP_TIMEOUT, "pause_at")
     if not res.results[0].successful:
         raise LaunchError(f"the sim refused pause_at = {t}: {res.results[0].reason}")
@@ -562,6 +561,7 @@ def _arm(executor: Any, sup: _Supervisor, t: float) -> None:
 
 def _apply_now(executor: Any, sup: _Supervisor, a: Action) -> None:
     """Apply ``a`` while the sim is paused and wait until it is in force (demand, services)."""
+    from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters
 
     sup.apply(a)
@@ -572,7 +572,7 @@ def _apply_now(executor: Any, sup: _Supervisor, a: Action) -> None:
             res = _call(executor, sup.cli_ap_get, GetParameters.Request(names=["demand_altitude"]), CONFIRM_TIMEOUT,
                         "demand_altitude")
             v = res.values[0]
-            if (v.double_value if v.type == 3 else float(v.integer_value)) == float(a.value):
+            if (v.double_value if v.type == ParameterType.PARAMETER_DOUBLE else float(v.integer_value)) == float(a.value):
                 break
             if time.monotonic() > deadline:
                 raise LaunchError(f"the autopilot did not take demand_altitude = {a.value} within {CONFIRM_TIMEOUT} s")
@@ -802,19 +802,18 @@ class _NodeDied(Exception):
 
 def final_state(msg: Any) -> dict[str, float]:
     """What a pilot reads off the last LanderState: altitude, rates, fuel and the tilt of the
-    body z axis from the local vertical (the orientation rotates body into world, ROS convention)."""
-    from lander_sim.physics.rotation import body_to_world
+    body z axis from the local vertical (the message's orientation components are the core's
+    quaternion, lander_sim.ros.convert)."""
+    from lander_tools.sweep.metrics import altitude_and_tilt
 
     o, p = msg.orientation, msg.position
-    z_W = body_to_world(np.array([o.w, o.x, o.y, o.z]), np.array([0.0, 0.0, 1.0]))
-    r = np.array([p.x, p.y, p.z])
-    cos_tilt = float(z_W @ r) / float(np.linalg.norm(r) * np.linalg.norm(z_W))
+    _, tilt = altitude_and_tilt(np.array([p.x, p.y, p.z]), np.array([o.w, o.x, o.y, o.z]))
     return {
         "altitude": float(msg.altitude),
         "climb_rate": float(msg.climb_rate),
         "ground_speed": float(msg.ground_speed),
         "fuel": float(msg.fuel_mass),
-        "tilt_deg": math.degrees(math.acos(max(-1.0, min(1.0, cos_tilt)))),
+        "tilt_deg": math.degrees(tilt),
     }
 
 

@@ -117,14 +117,9 @@ def _phase_name(sim: Any) -> str:
 
 
 def fly_case(
-    spec: SweepSpec, controller_index: int, index: int, *, record: bool = False, demand_delay: int = 0
+    spec: SweepSpec, controller_index: int, index: int, *, record: bool = False
 ) -> FlightResult:
-    """Fly flight ``index`` with controller ``controller_index``; metrics as in ``spec.METRICS``.
-
-    ``demand_delay`` (control periods, for diagnosing the through-ROS path only) makes the
-    controller see the demand step that many periods late; the metrics still count from the
-    scheduled step time.
-    """
+    """Fly flight ``index`` with controller ``controller_index``; metrics as in ``spec.METRICS``."""
     from lander_autopilot.controllers.base import Demand
     from lander_sim.simulation import Simulation
 
@@ -136,8 +131,6 @@ def fly_case(
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
     h_before, h_after, t_change = demand_schedule(spec, scene0, case)
     demand_before, demand_after = Demand(altitude=h_before), Demand(altitude=h_after)
-    # (k + 1/2) periods: a delayed switch falls clearly between two instants, whatever the rounding.
-    t_switch = t_change if not demand_delay else t_change + (demand_delay - 0.5) * period
 
     fuel0 = float(sim.state().fuel)
     ts, errs, tilts, rates = [], [], [], []
@@ -151,7 +144,7 @@ def fly_case(
         if not (np.all(np.isfinite(st.r_W)) and np.all(np.isfinite(st.omega_B))):
             terminal = "diverged"
             break
-        demand = demand_after if t >= t_switch else demand_before
+        demand = demand_after if t >= t_change else demand_before
         h, tilt = altitude_and_tilt(st.r_W, st.q)
         ts.append(t)
         errs.append(h - (h_after if t >= t_change else h_before))

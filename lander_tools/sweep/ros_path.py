@@ -65,9 +65,8 @@ def plan_for_case(
     before, after, t_change = demand_schedule(spec, scene0, case)
     timeline = [Action(0.0, "demand_altitude", before)]
     if after != before:
-        # The launcher publishes it when it sees the state at t_change, racing the autopilot's answer
-        # to that same state: it lands 0, 1 (usually) or more periods late; published a period early
-        # it lands 0 or -1. No choice here makes it exact (docs/sweeps.md); through_ros reports it.
+        # Exact in sim time: the launcher pauses the sim at t_change and waits until the autopilot
+        # has the new demand before the state at t_change goes out (lander_tools.launcher).
         timeline.append(Action(t_change, "demand_altitude", after))
     choice = spec.controllers[controller_index]
     seed = gust_seed(case) if case.wind_gust else (scene0.gust.seed if scene0.gust is not None else 0)
@@ -159,8 +158,6 @@ class RosCheck:
     core_rows: list[dict[str, Any]]
     ros_rows: list[dict[str, Any]]
     mismatches: list[str] = field(default_factory=list)
-    #: Flights that differ only because the autopilot applied the demand step at another instant.
-    demand_timing: list[str] = field(default_factory=list)
     ros_wall: float = 0.0  # [s] wall time of the flights through ROS (start-up included)
     core_wall: float = 0.0  # [s] wall time of the same flights core-only, one process
     outcomes: list[str] = field(default_factory=list)
@@ -177,19 +174,14 @@ class RosCheck:
             f"through ROS: {n} flight(s) in {self.ros_wall:.1f} s = {ros_fps:.3f} flights/s "
             f"(core-only, same flights, 1 process: {core_fps:.2f} flights/s, {core_fps / ros_fps:.0f}x faster); "
         )
-        n_timing = len(self.demand_timing)
         if self.agree:
-            text = head + f"metrics of {n - n_timing}/{n} agree with core-only (relative tolerance {RTOL:g})"
-            if n_timing:
-                text += (f"; {n_timing} differ only by the instant the autopilot node applied the demand step "
-                         "(they agree with core-only flown with that instant):\n  " + "\n  ".join(self.demand_timing))
-            return text
-        agreed = n - len({m.split(":")[0] for m in self.mismatches if "failed" not in m}) - n_timing
-        return (head + f"{agreed} agree; DISAGREEMENT:\n  " + "\n  ".join(self.mismatches + self.demand_timing))
+            return head + f"metrics of {n}/{n} agree with core-only (relative tolerance {RTOL:g})"
+        agreed = n - len({m.split(":")[0] for m in self.mismatches if "failed" not in m})
+        return head + f"{agreed} agree; DISAGREEMENT:\n  " + "\n  ".join(self.mismatches)
 
     def as_dict(self) -> dict[str, Any]:
         return {"flights": len(self.ros_rows), "ros_wall_s": self.ros_wall, "core_wall_s": self.core_wall,
-                "agree": self.agree, "rtol": RTOL, "mismatches": self.mismatches, "demand_timing": self.demand_timing,
+                "agree": self.agree, "rtol": RTOL, "mismatches": self.mismatches,
                 "launcher": self.outcomes,
                 "ros_rows": self.ros_rows}
 
@@ -207,44 +199,6 @@ def compare_rows(core: dict[str, Any], ros: dict[str, Any], metrics: tuple[str, 
         if not abs(a - b) <= rtol * max(1.0, abs(a)):
             out.append(f"{where}: {m} core-only {a!r}, through ROS {b!r} (difference {b - a:.3g})")
     return out
-
-
-def _demand_instant(spec: SweepSpec, ci: int, i: int, bag_path: Path, ros: dict[str, Any]) -> int | None:
-    """How many control periods late (or early) the nodes applied the demand step, if core-only
-    flown with that shift reproduces ``ros`` to :data:`RTOL`; else None.
-
-    The shift is read from the bag: core-only is flown with the old demand throughout and the
-    throttles it applies are compared, period by period, with those the simulator reports
-    (``LanderState.throttles`` = the command in force over the step just taken); the first period
-    that differs is when the autopilot switched.
-    """
-    from lander_tools.analysis import Flight
-    from lander_tools.bagio import read_bag
-    from lander_tools.sweep.flight import fly_case
-
-    scene0 = nominal_scene(spec)
-    case = draw_case(spec, i, scene0.vehicle.n_thrusters)
-    if not case.demand_step:
-        return None
-    _, period = control_period(spec, scene0.dt)
-    k_change = int(round(spec.end.demand_step_time / period))
-    never = fly_case(spec, ci, i, record=True, demand_delay=10**9).trajectory
-    f = Flight.from_bag(read_bag(bag_path))
-    ks = np.rint(f.t / period).astype(int)
-    k_switch = None
-    for k in range(max(0, k_change - 3), len(never.t)):
-        js = np.flatnonzero(ks == k + 1)
-        if js.size == 0:
-            break
-        if not np.array_equal(f.throttles[js[-1]], never.throttles[k]):
-            k_switch = k
-            break
-    # A saturated command can hide the switch for a period or two: then try the nearby shifts too.
-    candidates = ([k_switch - k_change] if k_switch is not None else []) + [-1, 1, -2, 2, 3]
-    for delay in dict.fromkeys(d for d in candidates if d != 0):
-        if not compare_rows(fly_case(spec, ci, i, demand_delay=delay).row, ros, spec.metrics):
-            return delay
-    return None
 
 
 def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str, Any]] | None = None,
@@ -283,12 +237,5 @@ def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str,
             continue
         ros = row_from_bag(spec, ci, i, bag)
         check.ros_rows.append(ros)
-        diffs = compare_rows(core, ros, spec.metrics)
-        if diffs:
-            late = _demand_instant(spec, ci, i, bag, ros)
-            if late is not None:
-                check.demand_timing.append(f"flight {i} ({spec.controllers[ci].label}): demand step applied {late:+d} "
-                                           "control period(s) from schedule")
-                continue
-        check.mismatches += diffs
+        check.mismatches += compare_rows(core, ros, spec.metrics)
     return check

@@ -230,3 +230,31 @@ class ChildProcess:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def param_value(v: object) -> Any:
+    """``rcl_interfaces/ParameterValue`` of a Python value, typed by it: bool, int, float, a list
+    (double array), else a string. (Unlike rclpy's own inference, an empty or mixed list is still
+    a double array: the fuzz tests send those on purpose.)"""
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+
+    if isinstance(v, bool):
+        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=v)
+    if isinstance(v, int):
+        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=v)
+    if isinstance(v, float):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=v)
+    if isinstance(v, list):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=v)
+    return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=str(v))
+
+
+def sim_service_clients(node: Any) -> dict[str, Any]:
+    """Clients of the simulator node's own services, by name (``load_scene``, ``reset``, ...)."""
+    from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
+    from std_srvs.srv import SetBool, Trigger
+
+    types = {"load_scene": LoadScene, "reset": Reset, "pause": Trigger, "resume": Trigger,
+             "step": StepSimulation, "run_until": RunUntil, "deploy_parachute": Trigger,
+             "set_stabiliser": SetBool}
+    return {name: node.create_client(t, f"/lander/{name}") for name, t in types.items()}

@@ -130,6 +130,20 @@ def expected(controller, msg, demand_altitude: float = 500.0) -> list[float]:
     return controller.update(state.t, state, Demand(altitude=demand_altitude)).throttles.tolist()
 
 
+def switch_mid_flight(rig, controller: str, mark: Flight) -> float:
+    """Switch the autopilot to ``controller`` (it must accept) and wait for its CONTROLLER_SWITCHED
+    event; return that event's stamp [s]: the sim time of the last state the old law answered."""
+    g = rig.ground
+    reply = g.switch_controller(controller)
+    assert reply.success and reply.active_controller == controller, reply.message
+
+    def switched() -> list:
+        return [e for e in g.events[mark.events:] if e.kind == FlightEvent.CONTROLLER_SWITCHED]
+
+    g.wait_for(switched, what="the switch event")
+    return seconds(switched()[0].header.stamp)
+
+
 def answers(rig, states, mark: Flight) -> list[tuple[object, list[float]]]:
     """(state, the autopilot's throttles) for every state of the flight, in order; asserts all answered.
 
@@ -150,12 +164,8 @@ def test_swapping_the_controller_mid_flight_happens_at_one_control_step(flight):
     old, new = make_controller("combined", vehicle), make_controller("lqr", vehicle)
     mark = start_flight(flight, "combined")
     g.wait_for(lambda: seconds(g.states[-1].header.stamp) >= 10.0, 60.0, "10 s of flight")
-    reply = g.switch_controller("lqr")
-    assert reply.success and reply.active_controller == "lqr", reply.message
     # Fly on 10 s past the switch (the event's stamp: the last state the old law answered).
-    g.wait_for(lambda: any(e.kind == FlightEvent.CONTROLLER_SWITCHED for e in g.events[mark.events:]),
-               what="the switch event")
-    t_switch = next(seconds(e.header.stamp) for e in g.events[mark.events:] if e.kind == FlightEvent.CONTROLLER_SWITCHED)
+    t_switch = switch_mid_flight(flight, "lqr", mark)
     states = fly_until(flight, t_switch + 10.0, mark)
 
     pairs = answers(flight, states, mark)

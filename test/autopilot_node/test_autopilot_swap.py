@@ -11,7 +11,7 @@ from lander_autopilot.controllers import make_controller
 from lander_sim.scenes import load_scene
 
 from .ground import START_TIMEOUT, seconds, wait_for_graph
-from .test_autopilot_flights import SCENE, answers, expected, fly_until, start_flight
+from .test_autopilot_flights import SCENE, answers, expected, fly_until, start_flight, switch_mid_flight
 
 #: Short, so a switch that blocks the control thread (first `import control` ~3 s, a design
 #: ~50 ms, both measured on this machine) would be counted; one answer normally takes ~1 ms.
@@ -38,11 +38,7 @@ def test_a_swap_to_a_designed_controller_keeps_lockstep_fed_and_falls_on_one_bou
     g.wait_for(lambda: diags and int(diags[-1]["ticks"]) > 0, 10.0, "diagnostics of the running sim")
     before = diags[-1]
     g.wait_for(lambda: seconds(g.states[-1].header.stamp) >= 3.0, 60.0, "3 s of flight")
-    reply = g.switch_controller("lqr")
-    assert reply.success and reply.active_controller == "lqr", reply.message
-    g.wait_for(lambda: any(e.kind == FlightEvent.CONTROLLER_SWITCHED for e in g.events[mark.events:]),
-               what="the switch event")
-    t_switch = next(seconds(e.header.stamp) for e in g.events[mark.events:] if e.kind == FlightEvent.CONTROLLER_SWITCHED)
+    t_switch = switch_mid_flight(rig, "lqr", mark)
     states = fly_until(rig, t_switch + 3.0, mark)
     n = len(diags)
     g.wait_for(lambda: len(diags) > n + 1, 10.0, "diagnostics after the pause")

@@ -102,13 +102,12 @@ class Watch:
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import Vector3Stamped
         from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
-        from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation, SwitchController
+        from lander_interfaces.srv import SwitchController
         from rcl_interfaces.srv import GetParameters, SetParameters
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64
-        from std_srvs.srv import SetBool, Trigger
 
         self.node = Node(name, context=context)
         self.executor = SingleThreadedExecutor(context=context)
@@ -134,14 +133,7 @@ class Watch:
             "state": n.create_publisher(LanderState, "/lander/state", reliable),
         }
         self.clients = {
-            "load_scene": n.create_client(LoadScene, "/lander/load_scene"),
-            "reset": n.create_client(Reset, "/lander/reset"),
-            "pause": n.create_client(Trigger, "/lander/pause"),
-            "resume": n.create_client(Trigger, "/lander/resume"),
-            "step": n.create_client(StepSimulation, "/lander/step"),
-            "run_until": n.create_client(RunUntil, "/lander/run_until"),
-            "deploy_parachute": n.create_client(Trigger, "/lander/deploy_parachute"),
-            "set_stabiliser": n.create_client(SetBool, "/lander/set_stabiliser"),
+            **rosutil.sim_service_clients(n),
             "switch_controller": n.create_client(SwitchController, "/autopilot/switch_controller"),
             "sim_set_parameters": n.create_client(SetParameters, "/lander_sim/set_parameters"),
             "sim_get_parameters": n.create_client(GetParameters, "/lander_sim/get_parameters"),

@@ -18,15 +18,15 @@ from typing import Callable, Iterator
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
-from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.msg import Parameter
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter as RclParameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_srvs.srv import SetBool, Trigger
+
+import rosutil
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -81,14 +81,7 @@ class Probe:
         self.throttle_pub = n.create_publisher(ThrottleCommand, "/lander/throttle", qos)
         self.wind_pub = n.create_publisher(Vector3Stamped, "/lander/wind", qos)
         self.clients = {
-            "load_scene": n.create_client(LoadScene, "/lander/load_scene"),
-            "reset": n.create_client(Reset, "/lander/reset"),
-            "pause": n.create_client(Trigger, "/lander/pause"),
-            "resume": n.create_client(Trigger, "/lander/resume"),
-            "step": n.create_client(StepSimulation, "/lander/step"),
-            "run_until": n.create_client(RunUntil, "/lander/run_until"),
-            "deploy_parachute": n.create_client(Trigger, "/lander/deploy_parachute"),
-            "set_stabiliser": n.create_client(SetBool, "/lander/set_stabiliser"),
+            **rosutil.sim_service_clients(n),
             "set_parameters": n.create_client(SetParameters, "/lander_sim/set_parameters"),
         }
 
@@ -141,7 +134,7 @@ class Probe:
         """Set sim-node parameters through its standard parameter service; fail on refusal."""
         req = SetParameters.Request()
         for k, v in params.items():
-            req.parameters.append(Parameter(name=k, value=_param_value(v)))
+            req.parameters.append(Parameter(name=k, value=rosutil.param_value(v)))
         res = self.call("set_parameters", req)
         for k, r in zip(params, res.results):
             assert r.successful, f"parameter {k} refused: {r.reason}"
@@ -149,7 +142,7 @@ class Probe:
     def set_params_result(self, **params: object):
         req = SetParameters.Request()
         for k, v in params.items():
-            req.parameters.append(Parameter(name=k, value=_param_value(v)))
+            req.parameters.append(Parameter(name=k, value=rosutil.param_value(v)))
         return self.call("set_parameters", req).results
 
     def wait_connected(self, timeout: float = 30.0) -> None:
@@ -193,16 +186,6 @@ def _ns(stamp) -> int:
 
 def state_ns(msg: LanderState) -> int:
     return _ns(msg.header.stamp)
-
-
-def _param_value(v: object) -> ParameterValue:
-    if isinstance(v, bool):
-        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=v)
-    if isinstance(v, int):
-        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=v)
-    if isinstance(v, float):
-        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=v)
-    return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=str(v))
 
 
 def state_fields(msg: LanderState) -> dict[str, object]:

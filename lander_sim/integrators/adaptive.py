@@ -159,6 +159,8 @@ class AdaptiveDormandPrince:
     _ynew: np.ndarray = field(default_factory=lambda: np.zeros(N_STATE), repr=False)
     _err: np.ndarray = field(default_factory=lambda: np.zeros(N_STATE), repr=False)
     _acc: np.ndarray = field(default_factory=lambda: np.zeros(6), repr=False)
+    _y0: np.ndarray = field(default_factory=lambda: np.zeros(N_STATE), repr=False)  # global mode: the call's start
+    _coarse: np.ndarray = field(default_factory=lambda: np.zeros(N_STATE), repr=False)  # global mode: y_H
 
     def __post_init__(self) -> None:
         for key in ("rtol", "atol"):
@@ -212,8 +214,8 @@ class AdaptiveDormandPrince:
 
     def _step_global(self, dyn: Dynamics, t: float, y: np.ndarray, dt: float) -> None:
         """Global mode: integrate [t, t + dt] on a mesh and its bisection until ``max|D| <= 1``."""
-        y0 = y.copy()
-        coarse = np.empty_like(y)
+        y0, coarse = self._y0, self._coarse
+        np.copyto(y0, y)
         bound = math.inf
         for _ in range(_MAX_PASSES):
             s = self._scale

@@ -43,7 +43,9 @@ def make_message(name: str) -> Any:
         _header(x, 99, 1, "mars")
     elif name == "AutopilotStatus":
         x = m.AutopilotStatus(controller="pole_placement", saturated=True, steps=2**33, rejected=4,
-                              last_error="state 17 was stale", throttles=[1.0, 0.0, 0.75, 0.5])
+                              last_error="state 17 was stale", throttles=[1.0, 0.0, 0.75, 0.5],
+                              demand_altitude=500.0, velocity_demanded=True, mode="flare")
+        x.demand_velocity.x, x.demand_velocity.y = 3.5, -1.25
         _header(x, 7, 7, "")
     else:
         raise ValueError(f"unknown message {name!r}; choices: {MESSAGES}")

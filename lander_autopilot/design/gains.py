@@ -8,7 +8,11 @@ the form used here.)
 ``control.place`` (Tits-Yang, scipy) refuses a pole repeated more than ``rank(B)`` times and a
 ``B`` with dependent columns; ``control.place_varga`` (SLICOT SB01BD via slycot) handles both and
 also leaves uncontrollable modes where they are. :func:`place_poles` picks the method and says
-which it used. ``import control`` costs ~1.5 s, so it happens inside the functions.
+which it used. SB01BD is not reliable with a rank-deficient ``B`` (four throttles, three torques):
+for some pole sets (e.g. a complex pair with a repeated real pole) it returns gains of 1e45 and
+poles of 1e30 with only a warning. Every placement is therefore checked against the request, and
+a miss is redone by ``control.place`` on the column space of ``B`` (``B = B_r V^T`` with ``V`` an
+orthonormal basis of ``B``'s row space, ``K = V K_r``: the minimum-norm throttle allocation). ``import control`` costs ~1.5 s, so it happens inside the functions.
 """
 from __future__ import annotations
 
@@ -30,7 +34,7 @@ class GainDesign:
     K : ndarray (m, n)
         Gain; ``K[i, j]``: input (thruster) ``i`` responds to state ``j``.
     method : str
-        ``"place"``, ``"place_varga"`` or ``"lqr"``.
+        ``"place"``, ``"place_varga"``, ``"place on the column space of B"`` or ``"lqr"``.
     requested : ndarray | None
         Requested closed-loop poles (pole placement only).
     poles : ndarray
@@ -82,10 +86,27 @@ def place_poles(A: np.ndarray, B: np.ndarray, poles: np.ndarray | list[complex])
         K = np.asarray(control.place(A, B, p))
         method = "place"
     else:
-        K = np.asarray(control.place_varga(A, B, p))
+        K = np.real_if_close(np.asarray(control.place_varga(A, B, p))).astype(float)
         method = "place_varga"
+        if ctrb.controllable and multiplicity <= rank_b and not _placed(p, A, B, K):
+            V = np.linalg.svd(B)[2][:rank_b].T  # orthonormal basis of B's row space (m x r)
+            K = V @ np.asarray(control.place(A, B @ V, p))
+            method = "place on the column space of B"
     K = np.real_if_close(K).astype(float)
     return GainDesign(K=K, method=method, requested=_sorted(p), poles=closed_loop_poles(A, B, K))
+
+
+# A placement that misses a requested pole by more than this (relative to the largest pole) has
+# failed numerically; a good one is off by ~1e-8 even for repeated poles (eps^(1/2)).
+PLACEMENT_TOLERANCE = 1e-6
+
+
+def _placed(p: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray) -> bool:
+    """True when ``eig(A - B K)`` matches the requested poles ``p``."""
+    achieved = closed_loop_poles(A, B, K) if np.all(np.isfinite(K)) else None
+    if achieved is None or not np.all(np.isfinite(achieved)):
+        return False
+    return match_poles(_sorted(p), achieved) <= PLACEMENT_TOLERANCE * max(1.0, float(np.abs(p).max()))
 
 
 def lqr(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> GainDesign:

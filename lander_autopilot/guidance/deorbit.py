@@ -1,0 +1,261 @@
+"""De-orbit planning: the burn that takes the lander from its orbit into an entry it survives.
+
+Plain numpy and scipy (no rclpy). World frame ``mars``: planet-centred, inertial, SI units.
+
+The burn is retrograde (against the velocity) at the orbit's apoapsis, or after ``slew_time`` for an
+orbit too close to circular to have one worth waiting for: lowering the periapsis is cheapest there
+(vis-viva). Its size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is
+chosen by flying the entry as a point mass under inverse-square gravity and drag (the lander's
+sphere, its models' constants) and keeping the highest periapsis whose entry is captured in one
+pass and slows below the parachute's deployment speed with the canopy's drag under its limit: a
+higher periapsis costs less fuel (the burn is smaller) and decelerates more gently.
+
+Fuel: rocket equation with the lander's effective exhaust speed ``c = T_axial / m_dot``. The burn is
+finite (tens of seconds): it is centred on the apoapsis, which costs a gravity loss of order
+``(omega t_burn)^2 / 24`` of the burn, under 0.1 % here, so it is not modelled.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lander_sim.physics import constants as c
+
+
+@dataclass(frozen=True)
+class EntryVehicle:
+    """What the plan needs of the lander (SI units).
+
+    axial_thrust : total thrust along the body axis with every thruster flat out [N].
+    fuel_rate : total fuel flow flat out [kg/s].
+    dry_mass : [kg]. drag_area, drag_cd : the body's sphere drag (``F = 1/2 rho Cd A v^2``).
+    chute_area, chute_cd, chute_max_speed, chute_max_drag : the parachute and its limits.
+    """
+
+    axial_thrust: float
+    fuel_rate: float
+    dry_mass: float = c.LANDER_DRY_MASS
+    drag_area: float = c.SPHERE_DRAG_AREA
+    drag_cd: float = c.SPHERE_DRAG_COEFFICIENT
+    chute_area: float = math.pi * c.PARACHUTE_RADIUS**2
+    chute_cd: float = c.PARACHUTE_DRAG_COEFFICIENT
+    chute_max_speed: float = c.PARACHUTE_MAX_SPEED
+    chute_max_drag: float = c.PARACHUTE_MAX_DRAG
+
+    @property
+    def exhaust_speed(self) -> float:
+        """Effective exhaust speed ``c = T / m_dot`` [m/s]."""
+        return self.axial_thrust / self.fuel_rate
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """Osculating two-body elements of a state (radii in m from the planet's centre)."""
+
+    semi_major_axis: float
+    eccentricity: float
+    periapsis_radius: float
+    apoapsis_radius: float
+    time_to_apoapsis: float  # s from the state; 0 for a circular orbit
+
+    @classmethod
+    def of(cls, position_W: np.ndarray, velocity_W: np.ndarray, gm: float = c.GM_MARS) -> Orbit:
+        r_vec, v_vec = np.asarray(position_W, float), np.asarray(velocity_W, float)
+        r, v2 = float(np.linalg.norm(r_vec)), float(v_vec @ v_vec)
+        energy = v2 / 2 - gm / r
+        if energy >= 0:
+            raise ValueError(f"not a closed orbit (specific energy {energy:.1f} J/kg >= 0)")
+        a = -gm / (2 * energy)
+        e_vec = ((v2 - gm / r) * r_vec - (r_vec @ v_vec) * v_vec) / gm
+        e = float(np.linalg.norm(e_vec))
+        rp, ra = a * (1 - e), a * (1 + e)
+        if e < 1e-9:
+            return cls(a, e, rp, ra, 0.0)
+        # eccentric anomaly now, then Kepler's equation for the time to E = pi
+        cos_E = (1 - r / a) / e
+        sin_E = float(r_vec @ v_vec) / (e * math.sqrt(gm * a))
+        E = math.atan2(sin_E, cos_E)
+        n = math.sqrt(gm / a**3)
+        M = E - e * math.sin(E)
+        dt = ((math.pi - M) % (2 * math.pi)) / n
+        return cls(a, e, rp, ra, dt)
+
+
+@dataclass(frozen=True)
+class EntryCheck:
+    """The point-mass entry after the burn, flown to the surface or to chute deployment."""
+
+    captured: bool  # came down in one pass: never climbing between the top of the atmosphere and the chute
+    chute_speed: float  # speed when the chute can open (below max speed, drag under its limit) [m/s]
+    chute_altitude: float  # altitude of that instant [m]; nan when never
+    peak_deceleration: float  # largest drag deceleration [m/s^2]
+    entry_speed: float  # speed at the top of the atmosphere [m/s]
+    entry_flight_path_angle: float  # below the local horizontal there [rad]
+
+    @property
+    def survivable(self) -> bool:
+        return self.captured and math.isfinite(self.chute_altitude)
+
+
+@dataclass(frozen=True)
+class DeorbitPlan:
+    """The burn and what it leads to. Times in s from the state the plan was made from."""
+
+    burn_start: float
+    burn_duration: float
+    direction_W: np.ndarray  # unit vector the thrust points along (retrograde) at the burn's centre
+    delta_v: float  # m/s
+    fuel: float  # kg burnt
+    fuel_left: float  # kg after the burn
+    periapsis_altitude: float  # m
+    entry: EntryCheck
+
+
+def _propagate(position_W: np.ndarray, velocity_W: np.ndarray, t: float, gm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two-body state after ``t`` s (RK45 to 1e-10 relative: the planner's precision is ~1 m)."""
+    from scipy.integrate import solve_ivp
+
+    if t <= 0:
+        return np.array(position_W, float), np.array(velocity_W, float)
+
+    def f(_t: float, y: np.ndarray) -> np.ndarray:
+        r = y[:3]
+        return np.concatenate([y[3:], -gm * r / np.linalg.norm(r) ** 3])
+
+    sol = solve_ivp(f, (0, t), np.concatenate([position_W, velocity_W]), rtol=1e-10, atol=1e-6)
+    return sol.y[:3, -1], sol.y[3:, -1]
+
+
+def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
+              gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS,
+              rho0: float = c.ATMOSPHERE_SURFACE_DENSITY, scale_height: float = c.ATMOSPHERE_SCALE_HEIGHT,
+              top: float = c.EXOSPHERE_ALTITUDE) -> EntryCheck:
+    """Fly a point mass (gravity + the body's drag, no thrust, chute packed) from just after the burn.
+
+    Stops at the first instant the parachute could open within its limits (speed below its maximum
+    and its drag below its limit at that speed and density), on the surface, or when the lander
+    starts climbing after entering the atmosphere (a skip: not captured in this pass; with this
+    dense exponential atmosphere a high periapsis still comes down, but an orbit or more later).
+    """
+    from scipy.integrate import solve_ivp
+
+    kd = 0.5 * vehicle.drag_cd * vehicle.drag_area / mass
+    kc = 0.5 * vehicle.chute_cd * vehicle.chute_area
+
+    def rho(h: float) -> float:
+        return rho0 * math.exp(-h / scale_height) if h <= top else 0.0
+
+    def f(_t: float, y: np.ndarray) -> np.ndarray:
+        r_vec, v_vec = y[:3], y[3:]
+        r = math.sqrt(float(r_vec @ r_vec))
+        vmag = math.sqrt(float(v_vec @ v_vec))
+        a = -gm * r_vec / r**3 - kd * rho(r - radius) * vmag * v_vec
+        return np.concatenate([v_vec, a])
+
+    def ground(_t: float, y: np.ndarray) -> float:
+        return float(np.linalg.norm(y[:3])) - radius
+
+    def chute_ok(_t: float, y: np.ndarray) -> float:
+        h = float(np.linalg.norm(y[:3])) - radius
+        v = float(np.linalg.norm(y[3:]))
+        if h > top:
+            return 1.0
+        # positive while the chute may not open yet
+        return max(v - vehicle.chute_max_speed, kc * rho(h) * v * v - vehicle.chute_max_drag)
+
+    def climbing(_t: float, y: np.ndarray) -> float:
+        # radial speed: turning positive after entry is a skip (another pass, hours later)
+        return float(y[:3] @ y[3:])
+
+    ground.terminal = True  # type: ignore[attr-defined]
+    chute_ok.terminal = True  # type: ignore[attr-defined]
+    chute_ok.direction = -1  # type: ignore[attr-defined]
+    climbing.terminal = True  # type: ignore[attr-defined]
+    climbing.direction = 1  # type: ignore[attr-defined]
+
+    # coast to the top of the atmosphere first (two-body, exact to the integrator's tolerance)
+    y0 = np.concatenate([position_W, velocity_W])
+    r0 = float(np.linalg.norm(position_W))
+    if r0 - radius > top:
+        def at_top(_t: float, y: np.ndarray) -> float:
+            return float(np.linalg.norm(y[:3])) - radius - top
+
+        at_top.terminal = True  # type: ignore[attr-defined]
+        at_top.direction = -1  # type: ignore[attr-defined]
+        orbit = Orbit.of(position_W, velocity_W, gm)
+        period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
+        coast = solve_ivp(f, (0, period), y0, rtol=1e-10, atol=1e-6, events=at_top)
+        if not coast.t_events[0].size:
+            return EntryCheck(False, math.nan, math.nan, 0.0, math.nan, math.nan)
+        y0 = coast.y_events[0][0]
+    r_vec, v_vec = y0[:3], y0[3:]
+    v_entry = float(np.linalg.norm(v_vec))
+    gamma = -math.asin(float(r_vec @ v_vec) / (np.linalg.norm(r_vec) * v_entry))
+    sol = solve_ivp(f, (0, 7200.0), y0, rtol=1e-9, atol=1e-6, max_step=5.0,
+                    events=[ground, chute_ok, climbing], dense_output=False)
+    hs = np.linalg.norm(sol.y[:3], axis=0) - radius
+    vs = np.linalg.norm(sol.y[3:], axis=0)
+    decel = np.array([kd * rho(h) * v * v for h, v in zip(hs, vs, strict=True)])
+    captured = not sol.t_events[2].size
+    if sol.t_events[1].size:
+        yc = sol.y_events[1][0]
+        return EntryCheck(captured, float(np.linalg.norm(yc[3:])), float(np.linalg.norm(yc[:3]) - radius),
+                          float(decel.max()), v_entry, gamma)
+    return EntryCheck(captured, math.nan, math.nan, float(decel.max()), v_entry, gamma)
+
+
+def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
+         slew_time: float = 60.0, periapsis_altitudes: tuple[float, ...] = tuple(range(150_000, 9_999, -5_000)),
+         min_chute_altitude: float = 3_000.0, gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS) -> DeorbitPlan:
+    """The cheapest single retrograde burn whose entry is survivable (see the module docstring).
+
+    ``periapsis_altitudes`` are tried from the highest (least fuel) down; the first whose entry is
+    captured with the chute able to open at least ``min_chute_altitude`` above the surface wins.
+    The burn starts no earlier than ``slew_time`` (the attitude manoeuvre before it). Raises
+    ValueError when no altitude works within the fuel on board.
+    """
+    position_W, velocity_W = np.asarray(position_W, float), np.asarray(velocity_W, float)
+    orbit = Orbit.of(position_W, velocity_W, gm)
+    period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
+    # An orbit whose apsides differ by under 1 km has no apoapsis worth waiting for: burn after the slew.
+    circular = orbit.apoapsis_radius - orbit.periapsis_radius < 1_000.0
+    centre = slew_time if circular else orbit.time_to_apoapsis
+    for _ in range(3):
+        burn = _cheapest_burn(position_W, velocity_W, mass, vehicle, centre, periapsis_altitudes,
+                              min_chute_altitude, gm, radius)
+        if burn.burn_start >= slew_time - 1e-9:
+            return burn
+        # centred on ``centre`` the burn would start inside the slew: half a burn later on a
+        # circular orbit (every point is alike), the next apoapsis otherwise
+        centre = slew_time + burn.burn_duration / 2 if circular else centre + period
+    return burn
+
+
+def _cheapest_burn(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
+                   centre: float, periapsis_altitudes: tuple[float, ...], min_chute_altitude: float,
+                   gm: float, radius: float) -> DeorbitPlan:
+    r_b, v_b = _propagate(position_W, velocity_W, centre, gm)
+    rb, speed = float(np.linalg.norm(r_b)), float(np.linalg.norm(v_b))
+    fuel_on_board = mass - vehicle.dry_mass
+    for hp in periapsis_altitudes:
+        rp = radius + hp
+        if rp >= rb:
+            continue
+        # vis-viva: the speed at rb on the orbit with apsides rb and rp. Retrograde: only the speed
+        # changes (exact at an apsis, where the velocity is horizontal).
+        v_new = math.sqrt(2 * gm * rp / (rb * (rb + rp)))
+        dv = speed - v_new
+        fuel = mass * (1 - math.exp(-dv / vehicle.exhaust_speed))
+        if dv <= 0 or fuel > fuel_on_board:
+            continue
+        entry = fly_entry(r_b, v_b * (v_new / speed), mass - fuel, vehicle, gm, radius)
+        if entry.survivable and entry.chute_altitude >= min_chute_altitude:
+            duration = fuel / vehicle.fuel_rate
+            return DeorbitPlan(burn_start=centre - duration / 2, burn_duration=duration, direction_W=-v_b / speed,
+                               delta_v=dv, fuel=fuel, fuel_left=fuel_on_board - fuel, periapsis_altitude=hp,
+                               entry=entry)
+    raise ValueError("no survivable single-burn de-orbit within the fuel on board "
+                     f"({fuel_on_board:.1f} kg) for periapsis altitudes {periapsis_altitudes[0] / 1e3:.0f}-"
+                     f"{periapsis_altitudes[-1] / 1e3:.0f} km")

@@ -1,0 +1,68 @@
+"""MPC of the powered descent flown in closed loop on a point mass: reaches the hover, keeps the limits, near-optimal fuel."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lander_autopilot.guidance.descent_mpc import DescentMpc, MpcSettings
+from lander_autopilot.guidance.fuel_optimal import DescentLimits, DescentProblem, GuidanceError, solve
+from lander_sim.physics.constants import LANDER_FUEL_RATE, LANDER_MAX_THRUST, SURFACE_GRAVITY
+
+AXIAL = LANDER_MAX_THRUST * math.cos(math.atan(0.25))  # one canted thruster's thrust along body z
+LIMITS = DescentLimits(rho_max=4 * AXIAL, alpha=LANDER_FUEL_RATE / AXIAL, dry_mass=100.0,
+                       max_tilt=math.radians(25), glide_slope=math.radians(5))
+TARGET = np.array([0.0, 0.0, 500.0])
+PERIOD = 0.1  # the autopilot's control period [s]
+
+
+def _rhs(y: np.ndarray, thrust: np.ndarray) -> np.ndarray:
+    # the true point mass: thrust (not acceleration) held over the period, mass burning as it flies
+    return np.r_[y[3:6], thrust / y[6] - [0.0, 0.0, SURFACE_GRAVITY], -LIMITS.alpha * np.linalg.norm(thrust)]
+
+
+def _fly(mpc: DescentMpc, y: np.ndarray, duration: float):
+    """RK4, 10 substeps a period (error ~1e-9 m over the flight); yields (t, state, thrust) each period."""
+    t, h = 0.0, PERIOD / 10
+    while t < duration:
+        T = mpc.command(t, y[:3], y[3:6], y[6])
+        yield t, y, T
+        for _ in range(10):
+            k1 = _rhs(y, T)
+            k2 = _rhs(y + h / 2 * k1, T)
+            k3 = _rhs(y + h / 2 * k2, T)
+            k4 = _rhs(y + h * k3, T)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        t += PERIOD
+
+
+def test_mpc_flies_the_handover_to_hover_within_the_limits_near_the_fuel_optimum():
+    r0, v0, m0 = np.array([300.0, -100.0, 2000.0]), np.array([-15.0, 5.0, -60.0]), 170.0
+    mpc = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET)
+    optimum = solve(DescentProblem(position_L=r0, velocity_L=v0, mass=m0, gravity=SURFACE_GRAVITY,
+                                   limits=LIMITS, target_L=TARGET), steps=60)
+    reached = None
+    for t, y, T in _fly(mpc, np.r_[r0, v0, m0], mpc.reference.sol.final_time + 10.0):
+        mag = float(np.linalg.norm(T))
+        assert mag <= LIMITS.rho_max * (1 + 1e-6)
+        if mag > 1.0:
+            assert math.acos(min(1.0, T[2] / mag)) <= LIMITS.max_tilt + 1e-6
+        rel = y[:3] - TARGET
+        assert y[2] >= 0
+        if np.linalg.norm(rel) < 2.0 and np.linalg.norm(y[3:6]) < 0.2:
+            reached = (t, m0 - y[6])
+            break
+    assert reached is not None, "never within 2 m and 0.2 m/s of the hover point"
+    # The issue's yardstick: at most 1.03 times the convex optimum with no dispersions. The reference
+    # flies at 95 % of the thrust (margin for the feedback), which alone costs about 1 %.
+    assert reached[1] <= 1.03 * optimum.fuel
+    assert reached[1] >= optimum.fuel * (1 - 1e-3)  # nothing beats the optimum (its own 1e-3 aside)
+    assert mpc.stats.failures == 0
+
+
+def test_mpc_holds_its_settings_to_account():
+    with pytest.raises(GuidanceError, match="reference_thrust_fraction"):
+        MpcSettings(reference_thrust_fraction=1.5)
+    with pytest.raises(GuidanceError, match="horizon_steps"):
+        MpcSettings(horizon_steps=1)

@@ -93,11 +93,15 @@ class Reference:
 
 
 class DescentMpc:
-    """The receding-horizon law; :meth:`command` gives the thrust vector to fly now."""
+    """The receding-horizon law; :meth:`command` gives the thrust vector to fly now.
+
+    ``free_horizontal``: the descent ends in a hover at ``target_L``'s altitude wherever the
+    fuel-optimal reference ends it (no landing spot), which then is the target.
+    """
 
     def __init__(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float, gravity: float,
                  limits: DescentLimits, target_L: np.ndarray | None = None,
-                 settings: MpcSettings | None = None) -> None:
+                 settings: MpcSettings | None = None, free_horizontal: bool = False) -> None:
         import cvxpy as cp
 
         self.settings = st = settings or MpcSettings()
@@ -108,8 +112,11 @@ class DescentMpc:
                                    glide_slope=limits.glide_slope)
         # The final time needs no more precision than a control period: fuel is flat near its optimum.
         reference = solve(DescentProblem(position_L=position_L, velocity_L=velocity_L, mass=mass,
-                                         gravity=gravity, limits=ref_limits, target_L=self.target),
+                                         gravity=gravity, limits=ref_limits, target_L=self.target,
+                                         free_horizontal=free_horizontal),
                           steps=st.reference_steps, t_tol=1e-3)
+        if free_horizontal:  # a hover wherever the optimum ends it: that point is the target
+            self.target = np.array(reference.position_L[-1])
         self.reference = Reference(reference, gravity, self.target)
         self.stats = MpcStats()
         H, h = st.horizon_steps, st.step
@@ -128,7 +135,7 @@ class DescentMpc:
                 cp.norm(a, axis=1) <= self._amax,
                 a[:, 2] >= math.cos(limits.max_tilt) * cp.norm(a, axis=1),
                 x[:, 2] >= 0]
-        if limits.glide_slope > 0:
+        if limits.glide_slope > 0 and not free_horizontal:
             rel = x[:, :3] - np.ones((H + 1, 1)) @ self.target[None, :]
             # the state at the handover may already be outside the cone: only the predicted steps
             cons.append(cp.norm(rel[1:, :2], axis=1) * math.tan(limits.glide_slope) <= rel[1:, 2])

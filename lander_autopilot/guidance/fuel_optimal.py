@@ -72,6 +72,9 @@ class DescentProblem:
     """From ``(position_L, velocity_L, mass)`` to rest at ``target_L`` (m, m/s, kg).
 
     Local frame: origin on the surface below the target, z up (altitude), x and y horizontal.
+    With ``free_horizontal`` only the target's altitude binds: the descent ends at rest at that
+    altitude wherever it is cheapest (a hover, not a landing spot); the glide slope then has no apex
+    and is not applied.
     """
 
     position_L: np.ndarray
@@ -80,6 +83,7 @@ class DescentProblem:
     gravity: float
     limits: DescentLimits
     target_L: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    free_horizontal: bool = False
 
     def __post_init__(self) -> None:
         for name in ("position_L", "velocity_L", "target_L"):
@@ -145,7 +149,8 @@ class _FixedTimeProgram:
         ones = np.ones((N, 1))
         cons = [
             r[0] == problem.position_L, v[0] == problem.velocity_L, z[0] == math.log(problem.mass),
-            r[N] == problem.target_L, v[N] == 0,
+            (r[N, 2] == problem.target_L[2]) if problem.free_horizontal else (r[N] == problem.target_L),
+            v[N] == 0,
             r[1:] == r[:-1] + self.dt * v[:-1] + self.sixth_dt2 * (2 * u[:-1] + u[1:])
             + self.half_dt2 * (ones @ g[None, :]),
             v[1:] == v[:-1] + self.dt / 2 * (u[:-1] + u[1:]) + self.dt * (ones @ g[None, :]),
@@ -165,7 +170,7 @@ class _FixedTimeProgram:
             self.z0 = cp.Parameter(N + 1)
             cons.append(s >= cp.multiply(self.mu_min, 1 - (z - self.z0))
                         + cp.multiply(self.mu_min, cp.square(z - self.z0)) / 2)
-        if lim.glide_slope > 0:
+        if lim.glide_slope > 0 and not problem.free_horizontal:
             rel = r - np.ones((N + 1, 1)) @ problem.target_L[None, :]
             cons.append(cp.norm(rel[:, :2], axis=1) * math.tan(lim.glide_slope) <= rel[:, 2])
         self.program = cp.Problem(cp.Maximize(z[N]), cons)

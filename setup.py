@@ -15,7 +15,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=["lander_sim*", "lander_autopilot*", "lander_tools*"]),
-    package_data={"lander_sim": ["scenes/*.yaml"]},
+    package_data={"lander_sim": ["scenes/*.yaml"], "lander_tools": ["live/web/*"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

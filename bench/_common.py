@@ -54,12 +54,20 @@ def write_json(path: str | None, data: dict[str, Any]) -> None:
 
 def pyplot():
     """matplotlib.pyplot with the non-interactive backend."""
-    import matplotlib
+    from lander_tools.plotstyle import pyplot as _pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return _pyplot()
 
-    return plt
+
+def write_outputs(args: argparse.Namespace, data: dict[str, Any], plot: Callable[[dict[str, Any]], Any], png: str) -> int:
+    """The end of every benchmark: ``data`` as JSON to ``--json``, ``plot(data)`` (a matplotlib
+    Figure drawn from that same JSON) to ``--out``/``png``; returns the exit status 0."""
+    write_json(args.json, data)
+    if args.out:
+        from lander_tools.plotstyle import save
+
+        save(plot(data), Path(args.out) / png, dpi=90)
+    return 0
 
 
 def timed(fn: Callable[[], Any]) -> tuple[Any, float]:

@@ -122,6 +122,33 @@ def bang_bang(quick: bool) -> list[dict]:
     return rows
 
 
+def plot(data: dict) -> object:
+    """Stability maps (spin rate against step), one panel per method, coloured by the largest
+    relative energy error and marked with the status (``data``: this benchmark's JSON)."""
+    spin = data["spin_sweep"]
+    dts = sorted({r["dt"] for r in spin}, reverse=True)
+    spins = sorted({r["spin"] for r in spin})
+    cell = {(r["method"], r["spin"], r["dt"]): r for r in spin}
+    methods = [m for m in METHODS if any(r["method"] == m for r in spin)]
+    plt = C.pyplot()
+    fig, axes = plt.subplots(1, len(methods), figsize=(3.6 * len(methods), 3.4), sharey=True, squeeze=False,
+                             layout="constrained")
+    for ax, m in zip(axes[0], methods):
+        grid = np.array([[min(cell[m, w, d]["energy_error"], 1e3) for d in dts] for w in spins])
+        im = ax.imshow(np.log10(np.maximum(grid, 1e-16)), origin="lower", cmap="viridis", vmin=-16, vmax=3, aspect="auto")
+        ax.set_xticks(range(len(dts)), [f"{d:g}" for d in dts])
+        ax.set_yticks(range(len(spins)), [f"{w:g}" for w in spins])
+        ax.set_title(m)
+        ax.set_xlabel("step dt [s]")
+        ax.set_ylabel("|omega| [rad/s]")
+        ax.yaxis.set_tick_params(labelleft=True)
+        for i, w in enumerate(spins):
+            for j, d in enumerate(dts):
+                ax.text(j, i, cell[m, w, d]["status"], ha="center", va="center", color="w", fontsize=8)
+    fig.colorbar(im, ax=axes[0], label="log10 max relative energy error [-]")
+    return fig
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     spin = spin_sweep(args.quick)
@@ -141,25 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     bb = bang_bang(args.quick)
     print(C.table("throttle bang-bang (hover, thruster 1 toggled every 0.2 s): error vs adaptive 1e-12",
                   ["method", "dt", "|dr| m", "|dq|"], [[r["method"], r["dt"], r["position_error"], r["attitude_error"]] for r in bb]))
-    C.write_json(args.json, {"spin_sweep": spin, "gimbal_lock": gl, "inertia": ie, "bang_bang": bb})
-    if args.out:
-        plt = C.pyplot()
-        fig, axes = plt.subplots(1, len(METHODS), figsize=(3.6 * len(METHODS), 3.2), sharey=True)
-        for ax, m in zip(axes, METHODS):
-            grid = np.array([[min(cell[m, w, d]["energy_error"], 1e3) for d in dts] for w in spins])
-            im = ax.imshow(np.log10(np.maximum(grid, 1e-16)), origin="lower", cmap="viridis", vmin=-16, vmax=3, aspect="auto")
-            ax.set_xticks(range(len(dts)), [f"{d:g}" for d in dts])
-            ax.set_yticks(range(len(spins)), [f"{w:g}" for w in spins])
-            ax.set_title(m)
-            ax.set_xlabel("dt [s]")
-            for i, w in enumerate(spins):
-                for j, d in enumerate(dts):
-                    ax.text(j, i, cell[m, w, d]["status"], ha="center", va="center", color="w", fontsize=8)
-        axes[0].set_ylabel("|omega| [rad/s]")
-        fig.colorbar(im, ax=axes, label="log10 max rel. energy error")
-        C.Path(args.out).mkdir(parents=True, exist_ok=True)
-        fig.savefig(C.Path(args.out) / "bench-extremes.png", dpi=90)
-    return 0
+    return C.write_outputs(args, {"spin_sweep": spin, "gimbal_lock": gl, "inertia": ie, "bang_bang": bb}, plot,
+                           "bench-extremes.png")
 
 
 if __name__ == "__main__":

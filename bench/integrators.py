@@ -1,7 +1,10 @@
 """Work-precision of every integrator (and scipy's solve_ivp as the peer) on four problems.
 
 Error against a closed form where one exists (Kepler orbit), otherwise against the adaptive
-method at tolerance 1e-12; cost as derivative evaluations and wall time. A second table
+method at tolerance 1e-12; cost as derivative evaluations and wall time. RK4, the adaptive
+Dormand-Prince (local error control) and DOP853 run compiled (:mod:`lander_sim.fast.rk_kernels`)
+wherever the model has a compiled form (all problems but the rotor), so the wall times compare
+methods, not implementations; a fourth table holds our best compiled run against scipy's DOP853. A second table
 measures the long-run energy and |L_W| drift of each method on the torque-free asymmetric top;
 a third what it costs the adaptive method to meet a *global* tolerance on one Kepler orbit.
 
@@ -11,6 +14,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -85,7 +89,9 @@ def _problems(quick: bool) -> list[Problem]:
 def work_precision(quick: bool) -> list[dict]:
     rows: list[dict] = []
     tols = [1e-5, 1e-8] if quick else [1e-4, 1e-6, 1e-8, 1e-10]
-    for p in _problems(quick):
+    problems = _problems(quick)
+    _warm_up(problems)
+    for p in problems:
         for name in C.FIXED:
             for dt in p.dts:
                 n = round(p.T / dt)
@@ -100,6 +106,84 @@ def work_precision(quick: bool) -> list[dict]:
             for m in ("RK45", "DOP853"):
                 y, wall, ev = C.run_scipy(m, p.dyn, p.y0, p.T, tol, tol)
                 rows.append(dict(problem=p.name, method=f"scipy-{m}", setting=f"tol={tol:g}", error=p.error(y), unit=p.unit, evals=ev, wall=wall))
+            got = run_dop853(p.dyn, p.y0, p.T, tol)
+            if got is not None:
+                y, wall, ev = got
+                rows.append(dict(problem=p.name, method="dop853", setting=f"tol={tol:g}", error=p.error(y), unit=p.unit, evals=ev, wall=wall))
+    return rows
+
+
+def _warm_up(problems: list[Problem]) -> None:
+    """Compile (or load from numba's cache) the compiled methods before anything is timed."""
+    for p in problems:
+        if run_dop853(p.dyn, p.y0, p.T * 1e-3, 1e-3) is not None:
+            y = p.y0.copy()
+            for name in ("rk4", "adaptive", "geometric"):
+                make(name).step(p.dyn, 0.0, y, p.T * 1e-3)
+            make("adaptive", error_control="global").step(p.dyn, 0.0, y, p.T * 1e-3)
+            return
+
+
+def run_dop853(dyn, y0: np.ndarray, T: float, tol: float, repeats: int = 1) -> tuple[np.ndarray, float, int] | None:
+    """The compiled DOP853 (:func:`lander_sim.fast.rk_kernels.dop853_span`) over [0, T] in one call:
+    (final y, best wall time of ``repeats`` [s], evaluations); None if the model has no compiled form."""
+    from lander_sim.fast.rk_kernels import compiled_model, dop853_span, dop853_tableau
+
+    cm = compiled_model(dyn)
+    if cm is None:
+        return None
+    thr, wind = cm.inputs()
+    A, B, Cc, E3, E5 = dop853_tableau()
+    best, y, stats = math.inf, y0.copy(), np.zeros(3)
+    for _ in range(repeats):
+        y, stats = y0.copy(), np.zeros(3)
+        t0 = time.perf_counter()
+        dop853_span(y, T, tol, tol, cm.params, cm.force, cm.torque, cm.burn, thr, wind, cm.translation, A, B, Cc, E3, E5, stats)
+        best = min(best, time.perf_counter() - t0)
+    return y, best, int(stats[2])
+
+
+def compiled_vs_scipy(quick: bool) -> list[dict]:
+    """Our best compiled method against scipy's DOP853 on the Kepler orbit, the descent and the
+    torque-free asymmetric top: for each tolerance, scipy's error and wall time, and the cheapest
+    compiled run (DOP853 and adaptive Dormand-Prince, tolerances tol * 10^(-j/2), j = 0..4) whose
+    error is at most scipy's; ``ratio`` = its wall time / scipy's (the acceptance: <= 0.1).
+    Wall times are the best of 3 (the machine is shared)."""
+    tols = [1e-4, 1e-7, 1e-10] if quick else [10.0**-k for k in range(4, 11)]
+    probs = [p for p in _problems(quick) if p.name in ("kepler", "descent", "dzhanibekov")]
+    rows: list[dict] = []
+    for p in probs:
+        run_dop853(p.dyn, p.y0, p.T, 1e-6)  # compile (or load) outside the timings
+        for tol in tols:
+            walls = []
+            for _ in range(3):
+                y, wall, ev = C.run_scipy("DOP853", p.dyn, p.y0, p.T, tol, tol)
+                walls.append(wall)
+            target = p.error(y)
+            best: dict | None = None
+            for method in ("dop853", "adaptive"):
+                for j in range(5):
+                    t2 = tol * 10.0 ** (-j / 2)
+                    if t2 < 1e-14:
+                        break
+                    if method == "dop853":
+                        y2, w2, e2 = run_dop853(p.dyn, p.y0, p.T, t2, repeats=3)  # type: ignore[misc]
+                    else:
+                        w2 = math.inf
+                        for _ in range(3):
+                            integ = make("adaptive", rtol=t2, atol=t2)
+                            y2, w, e2 = C.run_fixed(integ, p.dyn, p.y0, p.T, 1)
+                            w2 = min(w2, w)
+                    err = p.error(y2)
+                    if err <= target * (1.0 + 1e-9) or err <= 1e-15:
+                        if best is None or w2 < best["wall"]:
+                            best = dict(method=method, tol=t2, error=err, evals=e2, wall=w2)
+                        break
+            rows.append(dict(problem=p.name, tol=tol, scipy_error=target, scipy_evals=ev, scipy_wall=min(walls),
+                             method=best["method"] if best else "-", method_tol=best["tol"] if best else math.nan,
+                             error=best["error"] if best else math.nan, evals=best["evals"] if best else 0,
+                             wall=best["wall"] if best else math.nan,
+                             ratio=best["wall"] / min(walls) if best else math.nan))
     return rows
 
 
@@ -214,6 +298,32 @@ def bound_margin(quick: bool) -> dict:
                 eccentricities=eccs, orbits=spans, tolerances=tols)
 
 
+def plot(data: dict) -> object:
+    """Work-precision diagrams, one column per problem, one colour per method in every panel; error
+    against derivative evaluations (top) and against wall time (bottom: the compiled methods
+    against scipy). ``data``: this benchmark's JSON; only ``work_precision`` is drawn."""
+    from lander_tools import plotstyle as ps
+
+    plt = C.pyplot()
+    rows = data["work_precision"]
+    probs = list(dict.fromkeys(r["problem"] for r in rows))
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    fig, axes = plt.subplots(2, len(probs), figsize=(4.2 * len(probs), 8.0), squeeze=False, layout="constrained")
+    for row, (cost, label) in enumerate((("evals", "derivative evaluations [-]"), ("wall", "wall time [s]"))):
+        for ax, prob in zip(axes[row], probs):
+            sub = [r for r in rows if r["problem"] == prob]
+            for i, m in enumerate(methods):
+                pts = sorted((max(r[cost], 1e-7), max(r["error"], 1e-17)) for r in sub if r["method"] == m)
+                if pts:
+                    ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", color=ps.colour(i), ms=3)
+            ax.set_title(prob)
+            ax.set_xlabel(label)
+            ax.set_ylabel(f"error [{sub[0]['unit']}]")
+            ax.grid(True, which="both", alpha=0.3)
+    ps.legend_outside(fig, ps.colour_key(methods), methods)
+    return fig
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     rows = work_precision(args.quick)
@@ -221,6 +331,13 @@ def main(argv: list[str] | None = None) -> int:
         sub = [r for r in rows if r["problem"] == prob]
         print(C.table(f"work-precision: {prob} (error {sub[0]['unit']})", ["method", "setting", "error", "evals", "wall s", "acc/rej"],
                       [[r["method"], r["setting"], r["error"], r["evals"], r["wall"], f"{r['accepted']}/{r['rejected']}" if "accepted" in r else ""] for r in sub]))
+    cvs = compiled_vs_scipy(args.quick)
+    print(C.table("compiled vs scipy DOP853: the cheapest compiled run reaching scipy's error (wall: best of 3)",
+                  ["problem", "tol", "scipy error", "evals", "wall s", "ours", "at tol", "error", "evals", "wall s", "wall ratio"],
+                  [[r["problem"], r["tol"], r["scipy_error"], r["scipy_evals"], r["scipy_wall"], r["method"], r["method_tol"],
+                    r["error"], r["evals"], r["wall"], r["ratio"]] for r in cvs]))
+    worst = max((r["ratio"] for r in cvs), default=math.nan)
+    print(f"largest wall ratio ours / scipy DOP853: {worst:.3g} (acceptance: <= 0.1)\n")
     drift = long_run_drift(args.quick)
     print(C.table(f"long-run drift: torque-free asymmetric top I=(1,2,3), w0=(0.01,2,0.01) rad/s, {drift[0]['steps']} steps of {drift[0]['dt']} s",
                   ["method", "max dE/E", "first 10%", "last 10%", "max dL_W/L", "max | |q|-1 |"],
@@ -242,25 +359,8 @@ def main(argv: list[str] | None = None) -> int:
           f"median {margin['ratio_median']:.3g}, max {margin['ratio_max']:.3g}; largest true error / tol {margin['worst_error']:.3g}; "
           f"bound missed {margin['bound_missed']}, tolerance missed {margin['tolerance_missed']} "
           f"(reported as missed by the run: {margin['reported_missed']})\n")
-    C.write_json(args.json, {"work_precision": rows, "long_run_drift": drift, "global_tolerance": glob, "global_bound_margin": margin})
-    if args.out:
-        plt = C.pyplot()
-        probs = list(dict.fromkeys(r["problem"] for r in rows))
-        fig, axes = plt.subplots(1, len(probs), figsize=(4.2 * len(probs), 3.8))
-        for ax, prob in zip(axes, probs):
-            sub = [r for r in rows if r["problem"] == prob]
-            for m in dict.fromkeys(r["method"] for r in sub):
-                pts = sorted((r["evals"], max(r["error"], 1e-17)) for r in sub if r["method"] == m)
-                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=m, ms=3)
-            ax.set_title(prob)
-            ax.set_xlabel("derivative evaluations")
-            ax.set_ylabel(f"error ({sub[0]['unit']})")
-            ax.grid(True, which="both", alpha=0.3)
-        axes[0].legend(fontsize=7)
-        fig.tight_layout()
-        C.Path(args.out).mkdir(parents=True, exist_ok=True)
-        fig.savefig(C.Path(args.out) / "bench-integrators.png", dpi=90)
-    return 0
+    return C.write_outputs(args, {"work_precision": rows, "compiled_vs_scipy": cvs, "long_run_drift": drift, "global_tolerance": glob,
+                                  "global_bound_margin": margin}, plot, "bench-integrators.png")
 
 
 if __name__ == "__main__":

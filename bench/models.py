@@ -91,6 +91,17 @@ def one_by_one(quick: bool) -> list[dict]:
     return rows
 
 
+def plot(data: dict) -> object:
+    """Bar chart of steps per second as models are switched on one by one (``data``: this benchmark's JSON)."""
+    plt = C.pyplot()
+    ob = data["one_by_one"]
+    fig, ax = plt.subplots(figsize=(7, 3.2), layout="constrained")
+    ax.barh([r["models"] for r in ob][::-1], [r["steps_per_s"] for r in ob][::-1])
+    ax.set_xlabel("Verlet steps per second [1/s] (numpy path, one core)")
+    ax.set_ylabel("models switched on")
+    return fig
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     sc = scenes(args.quick)
@@ -100,16 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     ob = one_by_one(args.quick)
     print(C.table("lander, Verlet, models switched on one by one", ["models", "steps/s", "cost x"],
                   [[r["models"], f"{r['steps_per_s']:.0f}", r["relative_cost"]] for r in ob]))
-    C.write_json(args.json, {"scenes": sc, "one_by_one": ob})
-    if args.out:
-        plt = C.pyplot()
-        fig, ax = plt.subplots(figsize=(7, 3.2))
-        ax.barh([r["models"] for r in ob][::-1], [r["steps_per_s"] for r in ob][::-1])
-        ax.set_xlabel("Verlet steps per second (numpy path, one core)")
-        fig.tight_layout()
-        C.Path(args.out).mkdir(parents=True, exist_ok=True)
-        fig.savefig(C.Path(args.out) / "bench-models.png", dpi=90)
-    return 0
+    return C.write_outputs(args, {"scenes": sc, "one_by_one": ob}, plot, "bench-models.png")
 
 
 if __name__ == "__main__":

@@ -102,6 +102,23 @@ def _startup(cache_dir: str) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def plot(res: dict) -> object:
+    """Bar chart of the three implementations' steps per second (``res``: this benchmark's JSON)."""
+    from lander_tools import plotstyle as ps
+
+    plt = C.pyplot()
+    fig, ax = plt.subplots(figsize=(7, 2.8), layout="constrained")
+    labels = ["naive numpy", "numpy Dynamics", "compiled kernel"]
+    vals = [res["naive_steps_per_s"], res["numpy_steps_per_s"], res["kernel_steps_per_s"]]
+    ax.barh(labels, vals)
+    line = ax.axvline(res.get("target_steps_per_s", TARGET), color="r", ls="--")
+    ax.set_xscale("log")
+    ax.set_xlabel("Verlet steps per second [1/s] (log scale)")
+    ax.set_ylabel("implementation")
+    ps.legend_outside(fig, [line], [f"target {res.get('target_steps_per_s', TARGET):,.0f} steps/s"])
+    return fig
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     n_numpy = 2000 if args.quick else 20_000
@@ -169,21 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         [f"naive vs numpy, max rel. difference after {n_naive} steps", res["naive_vs_numpy_max_rel"]],
         [f"target {TARGET} steps/s met", str(res["target_met"])],
     ]))
-    C.write_json(args.json, res)
-    if args.out:
-        plt = C.pyplot()
-        fig, ax = plt.subplots(figsize=(6, 2.4))
-        labels = ["naive numpy", "numpy Dynamics", "compiled kernel"]
-        vals = [res["naive_steps_per_s"], res["numpy_steps_per_s"], res["kernel_steps_per_s"]]
-        ax.barh(labels, vals)
-        ax.axvline(TARGET, color="r", ls="--", label="target 200k")
-        ax.set_xscale("log")
-        ax.set_xlabel("Verlet steps per second (log)")
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        C.Path(args.out).mkdir(parents=True, exist_ok=True)
-        fig.savefig(C.Path(args.out) / "bench-speed.png", dpi=90)
-    return 0
+    return C.write_outputs(args, res, plot, "bench-speed.png")
 
 
 if __name__ == "__main__":

@@ -44,9 +44,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from geometry_msgs.msg import Vector3Stamped
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 
 from lander_autopilot.controllers import Demand
+from lander_autopilot.controllers.base import REQUEST_DEPLOY_PARACHUTE, REQUEST_LANDING_UNREACHABLE, DemandError
 from lander_autopilot.ros import convert
 from lander_autopilot.ros.config import (
     CONTROLLER_PARAMETERS,
@@ -121,6 +124,11 @@ class AutopilotNode(Node):
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
         self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
+        self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
+        # "Land": switch to the landing law with demand altitude 0 (docs/autopilot_node.md).
+        self.create_service(Trigger, "/autopilot/land", self._srv_land)
+        # A law's "deploy the parachute" request goes to the simulator's service.
+        self._cli_chute = self.create_client(Trigger, "/lander/deploy_parachute")
         # Own group: while a switch awaits its build, the default group (states, demands, watchdog)
         # stays free to run.
         self.create_service(SwitchController, "/autopilot/switch_controller", self._srv_switch,
@@ -134,6 +142,7 @@ class AutopilotNode(Node):
         self._last_state_wall: float | None = None
         self._state_lost = False
         self._next_lost_report = 0.0
+        self._mode = ""  # the controller mode last announced
         self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
@@ -172,10 +181,12 @@ class AutopilotNode(Node):
     # --- control step ------------------------------------------------------------------------
 
     def _on_state(self, msg: LanderState) -> None:
+        first = self._last_state_wall is None
         self._last_state_wall = time.monotonic()
         if self._state_lost:
             self._state_lost = False
-            self.get_logger().info(f"state received again (sequence {msg.sequence})")
+            if not first:  # the first state ends a start-up wait, not a loss (debug-logged only)
+                self.get_logger().info(f"state received again (sequence {msg.sequence})")
         self._control_step(msg)
 
     def _control_step(self, msg: LanderState) -> None:
@@ -192,8 +203,54 @@ class AutopilotNode(Node):
             self._publish_status()
             return
         convert.fill_throttle(self._cmd, msg, out.throttles)
-        self._pub_throttle.publish(self._cmd)
         self._last_stamp = msg.header.stamp
+        if self._act_on(out, msg):
+            return  # the command goes out once the simulator has deployed the chute
+        self._pub_throttle.publish(self._cmd)
+        self._publish_status()
+
+    def _act_on(self, out, msg: LanderState) -> bool:
+        """Publish the law's mode changes and reports; ask the simulator for the parachute.
+
+        True when a parachute deployment was requested: the throttle command is then held until
+        the simulator has answered, so the chute opens before the step these throttles fly (in
+        lockstep, exactly as a core-only loop does it).
+        """
+        stamp = msg.header.stamp
+        if self.slot.mode != self._mode:
+            # A change, not the first mode a law reports: that one is in /autopilot/status, and an
+            # event at the very first state can go out before a recorder has discovered the topic.
+            if self._mode and self.slot.mode:
+                self._publish_event(FlightEvent.MODE_CHANGED, f"controller {self.slot.name!r} mode {self._mode!r} -> "
+                                    f"{self.slot.mode!r}", [], stamp)
+            self._mode = self.slot.mode
+        held = False
+        for req in getattr(out, "requests", ()):
+            values = [float(v) for _, v in req.values]
+            detail = req.detail + (f" [values: {', '.join(k for k, _ in req.values)}]" if req.values else "")
+            if req.kind == REQUEST_LANDING_UNREACHABLE:
+                self.get_logger().warning(req.detail)
+                self._publish_event(FlightEvent.LANDING_UNREACHABLE, detail, values, stamp)
+            elif req.kind == REQUEST_DEPLOY_PARACHUTE:
+                if not self._cli_chute.service_is_ready():
+                    self.get_logger().warning(f"{req.detail}: /lander/deploy_parachute is not available")
+                    continue
+                self.get_logger().info(req.detail)
+                cmd = ThrottleCommand()
+                convert.fill_throttle(cmd, msg, out.throttles)
+                self._cli_chute.call_async(Trigger.Request()).add_done_callback(
+                    lambda f, cmd=cmd: self._after_chute(f, cmd))
+                held = True
+        return held
+
+    def _after_chute(self, future, cmd) -> None:
+        """The simulator answered the deployment: log its answer, send the held command."""
+        try:
+            res = future.result()
+            self.get_logger().info(f"parachute: {res.message}")
+        except Exception as exc:  # noqa: BLE001 - a failed call must not stop the commands
+            self.get_logger().warning(f"parachute deployment failed: {exc}")
+        self._pub_throttle.publish(cmd)
         self._publish_status()
 
     # --- inputs: demand, parameters, switch service ------------------------------------------
@@ -202,6 +259,26 @@ class AutopilotNode(Node):
         # Through the parameter so that one validation path serves topic and parameter alike;
         # a refusal is counted, logged and announced by _on_set_parameters.
         self.set_parameters([Parameter("demand_altitude", Parameter.Type.DOUBLE, float(msg.data))])
+
+    def _on_demand_velocity(self, msg: Vector3Stamped) -> None:
+        try:
+            self.slot.set_demand_velocity(convert.demand_velocity(msg))
+        except DemandError as exc:
+            self._refuse(f"refused /lander/demand_velocity: {exc}", self._last_stamp)
+            self._publish_status()
+            return
+        self.get_logger().info(f"demand velocity {self.slot.demand.velocity} m/s (east, north)")
+
+    def _srv_land(self, request: Trigger.Request, response: Trigger.Response):
+        """Switch to the ``landing`` law with demand altitude 0 (one atomic parameter change)."""
+        params = [Parameter("demand_altitude", Parameter.Type.DOUBLE, 0.0)]
+        if self.slot.name != "landing":
+            params += [Parameter("controller", Parameter.Type.STRING, "landing"),
+                       Parameter("controller_params", Parameter.Type.STRING, "")]
+        result = self.set_parameters_atomically(params)
+        response.success = result.successful
+        response.message = result.reason if not result.successful else f"landing with {self.slot.name!r}"
+        return response
 
     async def _srv_switch(self, request: SwitchController.Request, response: SwitchController.Response):
         # The build (a python-control design: tens of ms) runs in a worker thread; this callback
@@ -282,7 +359,10 @@ class AutopilotNode(Node):
             self._next_lost_report = now + self._state_timeout
             what = "no state received yet" if self._last_state_wall is None else "state lost"
             self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
-            self.get_logger().warning(self.slot.last_error)
+            # Before the first state this is a start-up (a launcher resets the sim once all are matched):
+            # in the status, not a warning at every start; a lost stream is a warning.
+            (self.get_logger().warning if self._last_state_wall is not None else self.get_logger().debug)(
+                self.slot.last_error)
             self._publish_status()
 
     def _refuse(self, reason: str, stamp) -> None:
@@ -305,6 +385,7 @@ class AutopilotNode(Node):
         convert.fill_status(self._status, stamp=self._stamp(), controller=s.name, saturated=s.saturated,
                             steps=s.steps, rejected=s.rejected, last_error=s.last_error, throttles=s.throttles,
                             state_ok=state_ok)
+        convert.fill_demand_status(self._status, s.demand, s.mode)
         self._pub_status.publish(self._status)
 
     def _publish_event(self, kind: int, detail: str, values: list[float], stamp=None) -> None:

@@ -25,8 +25,6 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3Stamped
-from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
-from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterNotDeclaredException
@@ -37,11 +35,32 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
+from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
+from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
-from lander_sim.ros.config import NODE_NAME, PARAMETERS, SCENE_SEED, ConfigError, check_parameter, check_params_file
-from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, events_executor, flush, run_node_process
+from lander_sim.ros.config import (
+    NODE_NAME,
+    PARAMETERS,
+    SCENE_SEED,
+    ConfigError,
+    check_parameter,
+    check_params_file,
+)
+from lander_sim.ros.delivery import (
+    FLUSH_TIMEOUT,
+    OUTPUT_QOS,
+    events_executor,
+    flush,
+    run_node_process,
+)
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
+from lander_sim.ros.flight_span import (
+    COUNTED_TOPICS,
+    FlightEnd,
+    format_matched,
+    parse_end_on,
+)
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
@@ -106,6 +125,10 @@ class SimNode(Node):
         self._last_marker_wall = -math.inf
         self._next_diag_wall = time.monotonic()
         self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
+        self._started = not self._paused  # a flight began (reset, resume, step, run_until or not start_paused)
+        self._ended = False  # the flight reached its end instant (end_time / end_on): no advancing until a reset
+        #: Messages published per output topic since the last reset (reported by FLIGHT_ENDED).
+        self._counts = dict.fromkeys(COUNTED_TOPICS, 0)
 
         self.sim: SimAdapter = self._load(self._param("scene"))
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
@@ -121,8 +144,10 @@ class SimNode(Node):
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
 
         c = self._counted
-        self.create_subscription(ThrottleCommand, "/lander/throttle", c(self._on_throttle), _INPUT_QOS)
-        self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS)
+        self._inputs = (
+            self.create_subscription(ThrottleCommand, "/lander/throttle", c(self._on_throttle), _INPUT_QOS),
+            self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS),
+        )
 
         self.create_service(LoadScene, "/lander/load_scene", c(self._srv_load_scene))
         self.create_service(Reset, "/lander/reset", c(self._srv_reset))
@@ -132,6 +157,7 @@ class SimNode(Node):
         self.create_service(RunUntil, "/lander/run_until", c(self._srv_run_until))
         self.create_service(Trigger, "/lander/deploy_parachute", c(self._srv_deploy_parachute))
         self.create_service(SetBool, "/lander/set_stabiliser", c(self._srv_set_stabiliser))
+        self.create_service(Trigger, "/lander/subscribers", c(self._srv_subscribers))
 
         # Messages kept and refilled every tick: no per-tick construction of message objects.
         self._clock_msg = Clock()
@@ -212,7 +238,8 @@ class SimNode(Node):
     def _loop_once(self) -> float:
         """Advance one tick if one is due; return how long the executor may block [s]."""
         now = time.monotonic()
-        if now >= self._next_diag_wall:
+        # After the end nothing more (its counts are final); before the first flight only if asked.
+        if now >= self._next_diag_wall and not self._ended and (self._started or self._param("idle_diagnostics")):
             self._publish_diagnostics(now)
         if now >= self._next_sub_check:
             self._check_subscribers(now)
@@ -255,14 +282,41 @@ class SimNode(Node):
         self.health.step_wall_s += time.perf_counter() - w0
         self.health.physics_steps += n_steps
         self.health.ticks += 1
+        reason = self._end_reason() if self._end_time >= 0.0 or self._end_on else None
+        if reason is not None:  # the end instant: its state goes out now (an end wins over a pause there)
+            self._publish_outputs()
+            self._end_flight(reason)
+            return
         if may_pause and self._pause_due():
             self._paused, self._pause_at, self._withheld = True, -1.0, True
             convert.fill_stamp(self._clock_msg.clock, self.sim.t)
             self._pub_clock.publish(self._clock_msg)
+            self._counts["/clock"] += 1
             self._publish_core_events()
-            self.get_logger().info(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
+            # Debug only: a launcher pauses here at every timeline action (issue 17, log noise).
+            self.get_logger().debug(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
             return
         self._publish_outputs()
+
+    def _end_reason(self) -> str | None:
+        """Why the instant just published ends the flight (``end_on`` touchdown, ``end_time``), or None."""
+        if not self.sim.flying and self.sim.phase_name in self._end_on:
+            return self.sim.phase_name
+        if self._end_time >= 0.0 and self.sim.t >= self._end_time - _TIME_EPS:
+            return "time-limit"
+        return None
+
+    def _end_flight(self, reason: str) -> None:
+        """Stop at the end instant (its state is out): a last /diagnostics, then FLIGHT_ENDED with the
+        counts of everything published since the reset (lander_sim.ros.flight_span), then nothing
+        more until a reset; so a recording ends here whatever its launcher does next."""
+        self._ended, self._paused, self._pause_at = True, True, -1.0
+        self._publish_diagnostics(time.monotonic())
+        self._counts["/lander/events"] += 1  # the FLIGHT_ENDED itself
+        end = FlightEnd(self.sim.t, reason, dict(self._counts))
+        self._counts["/lander/events"] -= 1  # _publish_event counts it again
+        self._publish_event(FlightEvent.FLIGHT_ENDED, end.detail(), end.values())
+        self.get_logger().debug(end.detail())
 
     def _advance(self, n_steps: int, stop_on_touchdown: bool = False) -> None:
         """Advance ``n_steps`` physics steps now (services), publishing at every tick boundary."""
@@ -270,7 +324,7 @@ class SimNode(Node):
             k = min(self._k, n_steps)
             self._tick(k)
             n_steps -= k
-            if stop_on_touchdown and not self.sim.flying:
+            if self._ended or (stop_on_touchdown and not self.sim.flying):
                 break
         self.pacer.restart()
 
@@ -299,24 +353,29 @@ class SimNode(Node):
         """
         self._withheld = False
         snap = self.sim.readout()
+        counts = self._counts
         if clock:
             convert.fill_stamp(self._clock_msg.clock, snap.t)
             self._pub_clock.publish(self._clock_msg)
+            counts["/clock"] += 1
         self._seq += 1
         self._published_t = snap.t
         convert.fill_state(self._state_msg, self._seq, snap)
         now = time.monotonic()
         self.health.state_published(self._seq, now)
         self._pub_state.publish(self._state_msg)
+        counts["/lander/state"] += 1
         if self._lockstep:
             self._awaiting, self._answered, self._await_since = self._seq, False, now
         if self._want_odom:
             convert.fill_odometry(self._odom_msg, snap)
             self._pub_odom.publish(self._odom_msg)
+            counts["/lander/odom"] += 1
         if self._want_pose:
             self._pose_msg.header.stamp = self._state_msg.header.stamp
             convert.fill_pose(self._pose_msg.pose, snap)
             self._pub_pose.publish(self._pose_msg)
+            counts["/lander/pose"] += 1
         if self._tf is not None and self._publish_tf:
             convert.fill_transform(self._tf_msg, snap)
             self._tf.sendTransform(self._tf_msg)
@@ -324,10 +383,12 @@ class SimNode(Node):
         if self._want_markers and now - self._last_marker_wall >= self._marker_period:
             self._last_marker_wall = now
             self._pub_markers.publish(self._markers.build(snap, self.sim.vehicle))
+            counts["/lander/markers"] += 1
         self._publish_core_events()
 
     def _publish_pending(self) -> None:
         """Before advancing from a service: the current instant's state, if it is not out yet."""
+        self._started = True
         if self._published_t is None or self._withheld:
             self._publish_outputs(clock=self._published_t is None)
 
@@ -350,6 +411,7 @@ class SimNode(Node):
         convert.fill_stamp(ev.header.stamp, self.sim.t if t is None else t)
         ev.kind, ev.detail, ev.values = int(kind), detail, [float(v) for v in values]
         self._pub_events.publish(ev)
+        self._counts["/lander/events"] += 1
 
     def _publish_diagnostics(self, now: float) -> None:
         self._next_diag_wall = now + 1.0 / self._param("diagnostics_rate")
@@ -375,6 +437,7 @@ class SimNode(Node):
         )
         arr.status = [status]
         self._pub_diag.publish(arr)
+        self._counts["/diagnostics"] += 1
 
     # --- inputs ------------------------------------------------------------------------------
 
@@ -444,7 +507,10 @@ class SimNode(Node):
         return response
 
     def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):
-        self._paused = False
+        if self._ended:
+            return self._srv_fail("resume", response, self._ended_message())
+        self._paused, self._started = False, True
+        self._check_subscribers(time.monotonic())  # who listens now gets this instant's odometry, pose, markers
         self.pacer.restart()
         if self._published_t is None:
             self._publish_outputs()  # started paused: state 1, the controller's first question
@@ -455,7 +521,24 @@ class SimNode(Node):
         response.success, response.message = True, f"resumed at t = {self.sim.t!r} s"
         return response
 
+    def _ended_message(self) -> str:
+        return f"the flight ended at t = {self.sim.t!r} s; reset or load a scene to fly again"
+
+    def _srv_subscribers(self, request: Trigger.Request, response: Trigger.Response):
+        """Subscriptions matched by each output's writer, and publishers matched by each input's
+        reader as ``sub:TOPIC`` (lander_sim.ros.flight_span.format_matched)."""
+        pubs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
+                self._pub_events, self._pub_diag)
+        matched = {p.topic_name: p.get_subscription_count() for p in pubs}
+        matched.update({f"sub:{s.topic_name}": s.get_publisher_count() for s in self._inputs})
+        response.success = True
+        response.message = format_matched(matched)
+        return response
+
     def _srv_step(self, request: StepSimulation.Request, response: StepSimulation.Response):
+        if self._ended:
+            response.sim_time = self.sim.t
+            return self._srv_fail("step", response, self._ended_message())
         if not self._paused:
             response.sim_time = self.sim.t
             return self._srv_fail("step", response, "step needs a paused simulation: call /lander/pause first")
@@ -471,6 +554,8 @@ class SimNode(Node):
     def _srv_run_until(self, request: RunUntil.Request, response: RunUntil.Response):
         target = request.sim_time
         response.sim_time_reached = self.sim.t
+        if self._ended:
+            return self._srv_fail("run_until", response, self._ended_message())
         if not math.isfinite(target) or target <= self.sim.t:
             return self._srv_fail(
                 "run_until", response, f"sim_time = {target!r} must be finite and later than now ({self.sim.t!r} s)"
@@ -510,6 +595,8 @@ class SimNode(Node):
         self._publish_tf = bool(self._param("publish_tf"))
         self._marker_period = 1.0 / float(self._param("marker_rate"))
         self._world_frame = str(self._param("world_frame"))
+        self._end_time = float(self._param("end_time"))
+        self._end_on = parse_end_on(self._param("end_on"))
 
     def set_parameters(self, parameter_list):
         """rclpy's ``set_parameters``, with every refused parameter counted and announced."""
@@ -608,6 +695,9 @@ class SimNode(Node):
         self._seq = 0
         self._published_t = None
         self._withheld = False
+        self._ended, self._started = False, True
+        self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
+        self._check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()
         self._cmd_t, self._stale, self._answered = None, False, True
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))

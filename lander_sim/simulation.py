@@ -153,7 +153,8 @@ class Simulation:
     use_fast_path : bool
         Step with the compiled kernel (:mod:`lander_sim.fast`) whenever the scene and the moment
         allow it (Verlet, quaternions, the standard lander models, no stabiliser or open
-        parachute); the numpy path is the fallback and agrees to ~1e-12 relative.
+        parachute); the numpy path is the fallback and agrees to ~1e-12 relative. False also
+        builds the integrator with ``compiled=False`` (its numpy code, the reference).
 
     Wind is the mean (``scene.wind_W``, replaced by :meth:`set_wind`) plus the scene's gusts
     (``scene.gust``, :class:`~lander_sim.physics.wind.GustProcess`), advanced once per physics
@@ -171,6 +172,8 @@ class Simulation:
         name = integrator or scene.integrator
         # Scene options belong to the scene's method; an overriding method starts from its defaults.
         options = dict(scene.integrator_options) if name == scene.integrator else {}
+        if not use_fast_path and "compiled" in integrators.options_of(name):
+            options["compiled"] = False  # the numpy reference all the way, not only for Verlet's kernel
         self.integrator = integrators.make(name, **options)
         step = scene.dt if dt is None else dt
         if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0.0):
@@ -184,7 +187,8 @@ class Simulation:
         self.dynamics = build_dynamics(scene, self.inputs)
         self.ground: Ground | None = None
         if scene.models.ground is not None and scene.models.gravity is not None:
-            self.ground = Ground(scene.models.gravity.radius, scene.vehicle.size, scene.models.ground.safe_speed)
+            gc = scene.models.ground
+            self.ground = Ground(scene.models.gravity.radius, scene.vehicle.size, gc.safe_speed, limits=gc.limits)
         chute = self.dynamics.model("parachute")
         self.parachute: Parachute | None = chute if isinstance(chute, Parachute) else None
         self.rejected: dict[str, int] = {"throttles": 0, "wind": 0, "parachute": 0, "stabiliser": 0}
@@ -361,6 +365,26 @@ class Simulation:
                 self._update_wind()
             self._after_step()
 
+    def adopt_step(self, y_before: np.ndarray, y_after: np.ndarray, k: int) -> None:
+        """Take step ``k - 1 -> k`` computed elsewhere (the batched sweep core flies many flights in
+        one compiled loop): the flat states before and after it; then the after-step checks run as
+        for a step of this Simulation's own (touchdown interpolation and classification, fuel-out,
+        parachute, stabiliser). Call it only while flying, with states of this scene."""
+        np.copyto(self._y_prev, y_before)
+        np.copyto(self.y, y_after)
+        self._k = int(k)
+        self._after_step()
+
+    @property
+    def scheduled_failures(self) -> list[tuple[int, int]]:
+        """Thruster failures still to come as ``(step index, thruster)``, soonest first (a copy)."""
+        return list(self._failures)
+
+    @property
+    def fast_kernel(self) -> "fast.FastLander | None":
+        """The compiled kernel's packed parameters for this scene (None when the scene has no fast path)."""
+        return self._fast
+
     def advance_to(self, t: float) -> None:
         """Step until the clock reaches ``t`` [s] (to the step grid, never beyond by a whole step)."""
         n = math.ceil((t - self.t) / self.dt - 1e-9)
@@ -393,15 +417,19 @@ class Simulation:
         y[:] = y0 + s * (y - y0)
         if self.scene.attitude == "quaternion":
             y[ATT] = rotation.quat_normalise(y[ATT])
-        td = g.classify(s, y[R_W], y[V_W])
+        q = y[ATT] if self.scene.attitude == "quaternion" else rotation.euler_to_quat(y[EULER])
+        td = g.classify(s, y[R_W], y[V_W], rotation.body_to_world(q, np.array([0.0, 0.0, 1.0])))
         y[V_W] = 0.0
         y[OMEGA_B] = 0.0
         self.inputs.throttles[:] = 0.0
         self.phase = Phase.CRASHED if td.crashed else Phase.LANDED
         t_impact = (self._k - 1 + s) * self.dt
-        values = {"t_impact": t_impact, "descent_rate": td.descent_rate, "ground_speed": td.ground_speed}
-        kind = EventKind.CRASHED if td.crashed else EventKind.LANDED
-        detail = f"{kind.value} at t = {t_impact:.3f} s: descent rate {td.descent_rate:.2f} m/s, ground speed {td.ground_speed:.2f} m/s"
+        # Appended keys only: readers index the first three.
+        values = {"t_impact": t_impact, "descent_rate": td.descent_rate, "ground_speed": td.ground_speed,
+                  "tilt_deg": math.degrees(td.tilt), "fuel_left": float(y[FUEL])}
+        kind = {"safe": EventKind.LANDED, "hard": EventKind.HARD_LANDING}.get(td.classification, EventKind.CRASHED)
+        detail = (f"{kind.value} at t = {t_impact:.3f} s ({td.classification}): descent rate {td.descent_rate:.2f} m/s, "
+                  f"ground speed {td.ground_speed:.2f} m/s, tilt {math.degrees(td.tilt):.2f} deg, fuel left {float(y[FUEL]):.2f} kg")
         self._emit(kind, detail, values, t=t_impact)
 
     def _check_gimbal(self) -> None:

@@ -11,11 +11,17 @@ Metric definitions (all SI):
   ``phase``), else ``flying`` (the flight ended on its time limit).
 * ``touchdown_speed``: the speed the simulator reported with LANDED/CRASHED, else
   ``|v_W|`` of the first state no longer flying.
+* ``touchdown_*``: the touchdown event's figures: ``touchdown_class`` (safe / hard / crash against
+  the scene's ``touchdown`` limits), descent rate and ground speed [m/s], tilt [deg], fuel left [kg].
 * ``fuel_used``: first minus last ``fuel_mass`` [kg].
+* Demand timeline: the demand altitude in force as ``/autopilot/status`` reports it (first
+  value and each change, timed at the state the autopilot first answered with it), so the
+  scene's demand counts too; bags without that field fall back to ``/lander/demand_altitude``.
 * Step response to the demand altitude ``h_d`` (reference 2, section 4.1): for the
-  last step of the demand timeline (or the first demand heard, if it never changed),
+  last step of the demand timeline (or the first demand, if it never changed),
   ``settling_time`` is the time after the step from which ``|h - h_d|`` stays inside
-  ``band = max(2 % of the step, band_min)``; ``overshoot`` is the largest excursion
+  ``band = max(2 % of the step, band_min)`` (:func:`lander_tools.sweep.metrics.settling_time`,
+  the sweeps' definition; ``None`` where it never settles); ``overshoot`` is the largest excursion
   past ``h_d`` in the step's direction as a percentage of the step; ``steady_state_error``
   is the mean of ``h - h_d`` over the last ``tail_fraction`` of the segment.
 * ``saturation_time``: simulation time the autopilot reported ``saturated`` (or, without
@@ -40,11 +46,14 @@ import numpy as np
 
 from lander_sim.physics import constants
 from lander_sim.physics.rotation import quat_to_matrix
+from lander_tools import plotstyle as ps
 from lander_tools.bagio import Bag, BagError
+from lander_tools.sweep.metrics import settling_time
 
 # FlightEvent kinds (lander_interfaces/msg/FlightEvent.msg); duplicated as plain ints so that
 # analysis needs neither rclpy nor the built interfaces.
 EV_LANDED, EV_CRASHED, EV_GIMBAL_LOCK, EV_CONTROLLER_SWITCHED = 0, 1, 2, 7
+EV_HARD_LANDING = 9  # FlightEvent.msg: over the scene's safe touchdown limits, under its crash limits
 PHASE_NAMES = {0: "flying", 1: "landed", 2: "crashed"}
 
 
@@ -75,7 +84,7 @@ class Flight:
     meta: dict[str, str] = field(default_factory=dict)
 
     @classmethod
-    def from_bag(cls, bag: Bag, name: str | None = None) -> "Flight":
+    def from_bag(cls, bag: Bag, name: str | None = None) -> Flight:
         """Extract a flight from a bag; raises :class:`BagError` if it has no ``/lander/state``."""
         if "/lander/state" not in bag:
             raise BagError(f"{bag.path}: no /lander/state messages, so no flight to analyse (topics: {bag.counts()})")
@@ -109,14 +118,16 @@ class Flight:
             sequence=s["sequence"].astype(np.int64),
             meta=dict(bag.meta),
         )
-        if "/lander/demand_altitude" in bag:
-            d = bag.series("/lander/demand_altitude")
-            f.demand_t, f.demand = d["t"], d["data"].astype(float)
         for m in bag.messages("/lander/events"):
             f.events.append((m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, int(m.kind), m.detail, list(m.values)))
         if "/autopilot/status" in bag:
             st = bag.series("/autopilot/status")
             f.status_t, f.status_saturated = st["t"], st["saturated"].astype(bool)
+            if "demand_altitude" in st:  # bags recorded before the status carried it have no column
+                f.demand_t, f.demand = _demand_changes(st["t"], st["demand_altitude"].astype(float), end)
+        if not len(f.demand) and "/lander/demand_altitude" in bag:
+            d = bag.series("/lander/demand_altitude")
+            f.demand_t, f.demand = d["t"], d["data"].astype(float)
         return f
 
     def demand_at(self, t: np.ndarray) -> np.ndarray:
@@ -131,6 +142,24 @@ class Flight:
     def z_axis_track(self) -> np.ndarray:
         """Body z axis in world coordinates, ``R(q)[2, :]`` (eq 13): Figure 1 of reference 1."""
         return np.array([quat_to_matrix(q)[2, :] for q in self.q])
+
+
+def _demand_changes(t: np.ndarray, demand: np.ndarray, end: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """The demand timeline from the autopilot's status: its first value and every change.
+
+    ``t`` are the stamps of the states the autopilot answered, so a change is timed at the first
+    control instant that flew it. Status from before the last reset (time runs backwards) and
+    after the flight's end (``end``, the bag's ``end_time``) is dropped, as for the states.
+    """
+    back = np.flatnonzero(np.diff(t) < 0)
+    keep = np.arange(len(t)) >= (int(back[-1]) + 1 if len(back) else 0)
+    if end is not None:
+        keep &= t <= float(end) + 1e-9
+    t, demand = t[keep], demand[keep]
+    if not len(t):
+        return t, demand
+    change = np.concatenate(([True], demand[1:] != demand[:-1]))
+    return t[change], demand[change]
 
 
 @dataclass
@@ -156,6 +185,13 @@ class Metrics:
     angular_momentum_drift: float | None
     controller_switches: int
     final_spin_rate: float
+    #: The touchdown event's figures (None without touchdown): classification against the
+    #: scene's limits (safe / hard / crash), descent rate [m/s], ground speed [m/s], tilt [deg], fuel left [kg].
+    touchdown_class: str | None = None
+    touchdown_descent_rate: float | None = None
+    touchdown_ground_speed: float | None = None
+    touchdown_tilt: float | None = None
+    touchdown_fuel_left: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -170,7 +206,7 @@ def _inertia_diag(flight: Flight) -> np.ndarray:
 
             vehicle = load_scene(scene).vehicle
             return np.array([vehicle.inertia(f) for f in flight.fuel])
-        except Exception:  # noqa: BLE001 - scene library missing or scene renamed: fall back
+        except Exception:  # noqa: BLE001, S110 - scene library missing or scene renamed: fall back
             pass
     return flight.mass[:, None] * np.asarray(constants.LANDER_GYRATION_SQ)[None, :]
 
@@ -192,13 +228,8 @@ def _step_response(
     step = hd - h0
     band = max(0.02 * abs(step), band_min)
     err = hs - hd
-    outside = np.nonzero(np.abs(err) > band)[0]
-    if len(outside) == 0:
-        settling: float | None = 0.0
-    elif outside[-1] == len(ts) - 1:
-        settling = None  # never settled within the recorded segment
-    else:
-        settling = float(ts[outside[-1] + 1] - t0)
+    st = settling_time(ts, err, t0, band)
+    settling = None if math.isnan(st) else st  # NaN: never settled within the recorded segment
     overshoot = None
     if abs(step) > band_min:
         past = np.sign(step) * err
@@ -218,10 +249,15 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     n = len(t)
     outcome = PHASE_NAMES.get(int(flight.phase[-1]), "flying") if n else "flying"
     touchdown = None
+    td: dict[str, Any] = {}
     for _, kind, _, values in flight.events:
-        if kind in (EV_LANDED, EV_CRASHED):
-            outcome = "landed" if kind == EV_LANDED else "crashed"
-            touchdown = float(values[0]) if values else None
+        if kind in (EV_LANDED, EV_HARD_LANDING, EV_CRASHED):
+            outcome = "crashed" if kind == EV_CRASHED else "landed"
+            # values: t_impact [s], descent_rate [m/s], ground_speed [m/s], tilt_deg, fuel_left [kg]
+            touchdown = math.hypot(values[1], values[2]) if len(values) >= 3 else None
+            td = dict(zip(("touchdown_descent_rate", "touchdown_ground_speed", "touchdown_tilt", "touchdown_fuel_left"),
+                          (float(v) for v in values[1:5])))
+            td["touchdown_class"] = {EV_LANDED: "safe", EV_HARD_LANDING: "hard"}.get(kind, "crash")
             break
     if touchdown is None and outcome != "flying":
         k = int(np.argmax(flight.phase != 0))
@@ -287,6 +323,7 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
         angular_momentum_drift=l_drift,
         controller_switches=sum(1 for e in flight.events if e[1] == EV_CONTROLLER_SWITCHED),
         final_spin_rate=float(np.linalg.norm(flight.omega_B[-1])) if n else 0.0,
+        **td,
     )
 
 
@@ -307,7 +344,8 @@ _UNITS = {
     "duration": "s", "touchdown_speed": "m/s", "fuel_used": "kg", "final_altitude": "m",
     "demand_altitude": "m", "step_size": "m", "settling_time": "s", "overshoot_percent": "%",
     "steady_state_error": "m", "hover_error_max": "m", "saturation_time": "s",
-    "final_spin_rate": "rad/s",
+    "final_spin_rate": "rad/s", "touchdown_descent_rate": "m/s", "touchdown_ground_speed": "m/s",
+    "touchdown_tilt": "deg", "touchdown_fuel_left": "kg",
 }
 
 
@@ -366,105 +404,142 @@ def to_json(all_metrics: list[Metrics]) -> str:
 # --- plots ------------------------------------------------------------------------------------
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")  # files only; never needs a display
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def is_rotor(flight: Flight) -> bool:
     """Rotor (gimballed top) flights get the z-axis track of reference 1, Figure 1."""
     return "rotor" in flight.meta.get("scene", "").lower() or "rotor" in flight.name.lower()
 
 
-def write_plots(flights: list[Flight], outdir: str | Path, prefix: str = "flight") -> list[Path]:
-    """Draw the standard figures for one flight, or overlays for several, to PNG files.
+#: Plot kinds :func:`figures` draws (``ztrack`` only when a flight is a rotor's).
+PLOT_KINDS = ("altitude", "attitude", "throttles", "trajectory", "ztrack")
+_TIME = "simulation time [s]"
 
-    Returns the paths written: ``<prefix>-altitude.png`` (altitude and climb rate with the
-    demand), ``-attitude.png`` (ZXZ angles and body rates), ``-throttles.png``,
-    ``-trajectory.png`` (3-D, world frame, relative to the start) and, for rotor flights,
-    ``-ztrack.png`` (body z axis in world coordinates, reference 1 Figure 1).
+
+def _panels(plt: Any, n: int, height: float) -> tuple[Any, list[Any]]:
+    """``n`` stacked panels on one time axis, each with its own time labels (a reader may look at
+    any panel alone)."""
+    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(8, height), layout="constrained", squeeze=False)
+    for ax in axes[:, 0]:
+        ax.set_xlabel(_TIME)
+        ax.xaxis.set_tick_params(labelbottom=True)
+        ax.grid(True)
+    return fig, list(axes[:, 0])
+
+
+def _components(fig: Any, flights: list[Flight], panels: list[tuple[Any, Any, list[str]]]) -> None:
+    """Plot per-component series: ``panels`` is ``(axes, f -> (N, k) array, component names)``.
+
+    One flight: a colour per component and a legend per panel. Several: the flight's colour
+    (the same in every panel) and a line style per component, with a flight key above.
     """
-    plt = _plt()
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths: list[Path] = []
-    label = len(flights) > 1
+    several = len(flights) > 1
+    for ax, series, names in panels:
+        for i, f in enumerate(flights):
+            y = series(f)
+            for j in range(y.shape[1] if y.ndim == 2 else 0):
+                if several:
+                    ax.plot(f.t, y[:, j], color=ps.colour(i), ls=ps.LINESTYLES[j % len(ps.LINESTYLES)], gid=f.name)
+                else:
+                    ax.plot(f.t, y[:, j], color=ps.colour(j), label=names[j] if j < len(names) else f"{j}", gid=f.name)
+        k = min(len(names), len(ps.LINESTYLES))
+        if several and k:
+            ax.legend(handles=ps.style_key(ps.LINESTYLES[:k], names[:k]), loc="upper left",
+                      bbox_to_anchor=(1.01, 1.0), fontsize="small")
+        elif not several and ax.get_legend_handles_labels()[0]:  # none for a flight without thrusters
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    if several:
+        ps.legend_outside(fig, ps.colour_key([f.name for f in flights]), [f.name for f in flights])
 
-    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    for f in flights:
-        a1.plot(f.t, f.altitude, label=f"{f.name} altitude" if label else "altitude")
+
+def figures(flights: list[Flight]) -> dict[str, Any]:
+    """The standard figures of one flight, or of several overlaid, as matplotlib Figures by kind.
+
+    ``altitude`` (altitude with the demand in force, dashed, and climb rate), ``attitude`` (ZXZ
+    angles and body rates), ``throttles``, ``trajectory`` (3-D, world frame, relative to the
+    start, one scale on every axis) and, for rotor flights, ``ztrack`` (body z axis in world
+    coordinates, reference 1 Figure 1). A flight has one colour in every panel; legends sit
+    outside the axes.
+    """
+    plt = ps.pyplot()
+    names = [f.name for f in flights]
+    out: dict[str, Any] = {}
+
+    fig, (a1, a2) = _panels(plt, 2, 6.5)
+    for i, f in enumerate(flights):
+        c = ps.colour(i)
+        a1.plot(f.t, f.altitude, color=c, gid=f.name)
         if len(f.demand):
-            td = np.concatenate([f.demand_t, [f.t[-1]]])
-            a1.step(td, np.concatenate([f.demand, [f.demand[-1]]]), where="post", ls="--",
-                    label=f"{f.name} demand" if label else "demand")
-        a2.plot(f.t, f.climb_rate, label=f.name if label else None)
+            td = np.concatenate([f.demand_t, [f.t[-1]]]) if len(f.t) else f.demand_t
+            hd = np.concatenate([f.demand, [f.demand[-1]]]) if len(f.t) else f.demand
+            a1.step(td, hd, where="post", ls="--", color=c, lw=1.0, gid=f.name)
+        a2.plot(f.t, f.climb_rate, color=c, gid=f.name)
     a1.set_ylabel("altitude [m]")
-    a1.legend(loc="best", fontsize="small")
     a2.set_ylabel("climb rate [m/s]")
-    a2.set_xlabel("simulation time [s]")
-    if label:
-        a2.legend(loc="best", fontsize="small")
-    a1.grid(True)
-    a2.grid(True)
-    paths.append(_save(fig, out / f"{prefix}-altitude.png", plt))
+    key = ps.style_key(["-", "--"], ["altitude", "demand altitude"])
+    handles = ps.colour_key(names) + key if len(flights) > 1 else key
+    ps.legend_outside(fig, handles, [h.get_label() for h in handles])
+    out["altitude"] = fig
 
-    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    for f in flights:
-        for i, nm in enumerate(("phi", "theta", "psi")):
-            a1.plot(f.t, np.degrees(f.euler[:, i]), label=f"{f.name} {nm}" if label else nm)
-        for i, nm in enumerate(("x", "y", "z")):
-            a2.plot(f.t, f.omega_B[:, i], label=f"{f.name} omega_{nm}" if label else f"omega_{nm}")
-    a1.set_ylabel("ZXZ Euler angles [deg]")
-    a2.set_ylabel("body rates [rad/s]")
-    a2.set_xlabel("simulation time [s]")
-    for a in (a1, a2):
-        a.grid(True)
-        a.legend(loc="best", fontsize="small", ncol=3)
-    paths.append(_save(fig, out / f"{prefix}-attitude.png", plt))
+    fig, (a1, a2) = _panels(plt, 2, 6.5)
+    a1.set_ylabel("ZXZ Euler angle [deg]")
+    a2.set_ylabel("body rate [rad/s]")
+    _components(fig, flights, [
+        (a1, lambda f: np.degrees(f.euler), ["phi", "theta", "psi"]),
+        (a2, lambda f: f.omega_B, ["omega_x", "omega_y", "omega_z"]),
+    ])
+    out["attitude"] = fig
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    for f in flights:
-        for i in range(f.throttles.shape[1] if f.throttles.ndim == 2 else 0):
-            ax.plot(f.t, f.throttles[:, i], label=f"{f.name} thruster {i}" if label else f"thruster {i}")
+    fig, (ax,) = _panels(plt, 1, 4.0)
     ax.set_ylabel("throttle [0-1]")
-    ax.set_xlabel("simulation time [s]")
     ax.set_ylim(-0.05, 1.05)
-    ax.grid(True)
-    ax.legend(loc="best", fontsize="small")
-    paths.append(_save(fig, out / f"{prefix}-throttles.png", plt))
+    n_thr = max((f.throttles.shape[1] for f in flights if f.throttles.ndim == 2), default=0)
+    _components(fig, flights, [(ax, lambda f: f.throttles, [f"thruster {j}" for j in range(n_thr)])])
+    out["throttles"] = fig
 
-    fig = plt.figure(figsize=(7, 6))
+    fig = plt.figure(figsize=(7, 6.5), layout="constrained")
     ax = fig.add_subplot(projection="3d")
-    for f in flights:
-        d = f.r_W - f.r_W[0]
-        ax.plot(d[:, 0], d[:, 1], d[:, 2], label=f.name)
+    tracks = []
+    for i, f in enumerate(flights):
+        d = f.r_W - f.r_W[0] if len(f.t) else f.r_W
+        tracks.append(d)
+        ax.plot(d[:, 0], d[:, 1], d[:, 2], color=ps.colour(i), gid=f.name)
+    ps.equal_limits_3d(ax, tracks)
     ax.set_xlabel("x_W - x0 [m]")
     ax.set_ylabel("y_W - y0 [m]")
-    ax.set_zlabel("z_W - z0 [m]")
-    ax.legend(loc="best", fontsize="small")
-    paths.append(_save(fig, out / f"{prefix}-trajectory.png", plt))
+    ax.set_zlabel("z_W - z0 [m]", labelpad=8)
+    ax.set_title("trajectory, world frame, from the start (one scale on every axis)")
+    if len(flights) > 1:
+        ps.legend_outside(fig, ps.colour_key(names), names)
+    out["trajectory"] = fig
 
-    if any(is_rotor(f) for f in flights):
-        fig = plt.figure(figsize=(6, 6))
-        ax = fig.add_subplot(projection="3d")
-        for f in flights:
-            if is_rotor(f):
-                z = f.z_axis_track()
-                ax.plot(z[::2, 0], z[::2, 1], z[::2, 2], label=f.name)
-        ax.set_xlim(-1, 1)
-        ax.set_ylim(-1, 1)
-        ax.set_zlim(-1, 1)
-        ax.set_title("z-axis track (body z in world coordinates)")
-        paths.append(_save(fig, out / f"{prefix}-ztrack.png", plt))
-    return paths
+    rotors = [(i, f) for i, f in enumerate(flights) if is_rotor(f)]
+    if rotors:
+        out["ztrack"] = ztrack_figure([(f.name, f.z_axis_track(), ps.colour(i)) for i, f in rotors])
+    return out
 
 
-def _save(fig: Any, path: Path, plt: Any) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+def ztrack_figure(tracks: list[tuple[str, np.ndarray, str]]) -> Any:
+    """Reference 1 Figure 1: the body z axis in world coordinates, ``R(q)[2, :]`` (eq 13), as a
+    3-D track on the unit sphere; ``tracks`` are ``(name, (N, 3) array, colour)``."""
+    plt = ps.pyplot()
+    fig = plt.figure(figsize=(6, 6.5), layout="constrained")
+    ax = fig.add_subplot(projection="3d")
+    for name, z, c in tracks:
+        ax.plot(z[::2, 0], z[::2, 1], z[::2, 2], color=c, gid=name)
+    ax.set_xlim(-1, 1)
+    ax.set_ylim(-1, 1)
+    ax.set_zlim(-1, 1)
+    ax.set_box_aspect((1.0, 1.0, 1.0), zoom=ps.BOX_ZOOM_3D)
+    for axis, name in ((ax.xaxis, "x_W"), (ax.yaxis, "y_W"), (ax.zaxis, "z_W")):
+        axis.set_ticks([-1.0, -0.5, 0.0, 0.5, 1.0])
+        axis.set_label_text(f"{name} [-]")
+    ax.set_title("body z axis in world coordinates (unit vector)")
+    if len(tracks) > 1:
+        ps.legend_outside(fig, ps.colour_key([n for n, _, _ in tracks], [c for _, _, c in tracks]),
+                          [n for n, _, _ in tracks])
+    return fig
+
+
+def write_plots(flights: list[Flight], outdir: str | Path, prefix: str = "flight") -> list[Path]:
+    """Draw :func:`figures` to ``<outdir>/<prefix>-<kind>.png`` and return the paths written."""
+    out = Path(outdir)
+    return [ps.save(fig, out / f"{prefix}-{kind}.png") for kind, fig in figures(flights).items()]

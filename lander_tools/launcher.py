@@ -10,25 +10,32 @@ install ``ros2 launch mars_lander fly.launch.py`` starts the same two nodes
 
 What it does:
 
-1. writes one ROS parameters file per node (``lander_sim``, ``autopilot``)
-   from the flight's settings, after the user's ``--params`` file;
-2. starts the sim node (paused) and, when the scene or ``--controller`` names a
-   controller, the autopilot node, as separate processes (or both in one
-   process with ``--compose``), forwarding their output line by line with a
-   ``[sim]`` / ``[autopilot]`` prefix;
-3. records (``--record``) from inside this process with :class:`~lander_tools.recorder.Recorder`,
-   waits until the nodes and the recorder have discovered each other, resets the
-   sim (so state 1 at t = 0 reaches everyone) and resumes it;
-4. applies the flight's timeline (demand-altitude steps, wind gusts, controller
-   swaps, throttle overrides) at the first control instant at or after each time,
-   exactly in sim time at any speed: with an autopilot the sim pauses at each such
-   instant (its ``pause_at`` parameter: /clock shows the instant, its state is held
-   back) while the launcher acts and waits until the action is in force, then
-   resumes (:func:`plan_stops`); the flight's end is such a stop too;
-5. ends on landing or crash, at the time limit (sim time), on Ctrl-C/SIGTERM or
-   when a node dies; stops the nodes, autopilot first (SIGINT, then SIGTERM,
-   then SIGKILL after a grace period), closes the bag (noting the end time and
-   outcome in its metadata) and prints a summary.
+Before anything starts, the scene, controller and flight names and the ``--params`` file are
+checked (:func:`check_plan`: one line naming what is wrong, with the closest name). Then
+:func:`fly` runs these phases, top-down, each a function of its own:
+
+1. :func:`start_nodes`: one ROS parameters file per node (``lander_sim``, ``autopilot``) from
+   the user's ``--params`` sections and the flight's settings; the sim node (paused, with the
+   flight's end as its ``end_time``/``end_on``) and, when the scene or ``--controller`` names a
+   controller, the autopilot node, as processes (or one with ``--compose``), their output
+   forwarded under a ``[sim]`` / ``[autopilot]`` prefix; the recorder (``--record``) in this
+   process (:class:`~lander_tools.recorder.Recorder`);
+2. :func:`wait_until_matched`: every subscriber the flight needs (recorder on every recorded
+   topic, autopilot, this launcher) is matched by the publishers' writers, asked of the sim
+   (``/lander/subscribers``) and of the recorder's readers;
+3. :func:`reset_flight`: reset the sim, so state 1 at t = 0 reaches everyone (and, in lockstep,
+   the autopilot has answered it);
+4. :func:`run_to_end`: resume and apply the flight's timeline (demand steps, wind, controller
+   swaps, throttle overrides) at the first control instant at or after each time, exactly in
+   sim time at any speed (with an autopilot the sim pauses there, ``pause_at``, while the
+   action is put in force: :func:`plan_stops`), until the sim announces ``FLIGHT_ENDED``: the
+   sim itself stops at the end instant (time limit, landing or crash), so the flight's span does
+   not depend on how fast this process reacts (docs/sim_node.md, "A flight's span");
+5. :func:`stop_nodes`: wait until the recorder holds every message the sim counted, then stop
+   the nodes, autopilot first (SIGINT, SIGTERM, SIGKILL after a grace period);
+6. :func:`close_and_check_bag`: close the bag and compare its counts with what was published
+   (the sim's ``FLIGHT_ENDED`` counts; for the autopilot's and this launcher's topics what this
+   launcher's own subscriptions received or it sent): a missing message is an error (exit 3).
 
 Exit status (documented in docs/flying.md):
 
@@ -37,11 +44,13 @@ Exit status (documented in docs/flying.md):
 1     crashed
 2     error: a node failed to start or died, bad configuration,
       no state from the simulator
+3     the flight ended as reported, but the bag misses messages that were published
 130   interrupted by Ctrl-C / SIGTERM (the bag is still closed validly)
 ====  ===========================================================
 """
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import signal
@@ -62,10 +71,20 @@ from lander_tools import child
 EXIT_OK = 0
 EXIT_CRASHED = 1
 EXIT_ERROR = 2
+EXIT_INCOMPLETE_BAG = 3
 EXIT_INTERRUPTED = 130
 
 SIM_NODE = "lander_sim"
 AUTOPILOT_NODE = "autopilot"
+#: Sections a ``--params`` file may have, and the node each one configures (``/**``: both).
+PARAMS_SECTIONS: dict[str, tuple[str, ...]] = {
+    SIM_NODE: (SIM_NODE,), f"/{SIM_NODE}": (SIM_NODE,),
+    AUTOPILOT_NODE: (AUTOPILOT_NODE,), f"/{AUTOPILOT_NODE}": (AUTOPILOT_NODE,),
+    "lander_autopilot": (AUTOPILOT_NODE,), "/lander_autopilot": (AUTOPILOT_NODE,),
+    "/**": (SIM_NODE, AUTOPILOT_NODE),
+}
+#: Wall seconds to wait, after the sim announced the end, for the recorder to hold what it counted.
+DELIVERY_TIMEOUT = 10.0
 #: Wall seconds allowed for discovery, service answers and the first state.
 STARTUP_TIMEOUT = 30.0
 #: Wall seconds without a new state (while not paused) after which the flight is an error.
@@ -155,6 +174,12 @@ class FlightResult:
     wall_time: float = 0.0
     #: The last state seen: altitude [m], climb rate [m/s], ground speed [m/s], fuel [kg], tilt [deg].
     final: dict[str, float] = field(default_factory=dict)
+    #: Named values of the touchdown event (t_impact [s], descent_rate [m/s], ground_speed [m/s], ...).
+    touchdown: dict[str, float] = field(default_factory=dict)
+    #: The touchdown's classification against the scene's limits: safe, hard or crash ("" if none).
+    touchdown_class: str = ""
+    #: The bag's counts against what was published (close_and_check_bag).
+    bag_check: str = ""
 
 
 def resolve_controller(plan: FlightPlan) -> str | None:
@@ -249,7 +274,6 @@ class Stop:
     index: int
     t: float
     actions: list[Action] = field(default_factory=list)
-    end: bool = False
 
 
 def plan_stops(timeline: list[Action], period: float, duration: float | None) -> list[Stop]:
@@ -258,9 +282,10 @@ def plan_stops(timeline: list[Action], period: float, duration: float | None) ->
     An action due at ``t`` belongs to the first instant ``t_k >= t``. The sim pauses having
     reached ``t_k`` but before publishing its state (``pause_at``), so sim-side actions (wind,
     stabiliser, parachute) act from the step leaving ``t_k`` and autopilot-side ones (demand,
-    controller) from its answer to state k. The end (first instant >= ``duration``) is the last
-    stop. Throttle overrides (sent with the states) and actions at instant 0 (applied before the
-    flight starts) are not listed.
+    controller) from its answer to state k. Nothing is planned at or after the end (the first
+    instant >= ``duration``, where the sim itself stops: its ``end_time``). Throttle overrides
+    (sent with the states) and actions at instant 0 (applied before the flight starts) are not
+    listed.
     """
     by_index: dict[int, Stop] = {}
 
@@ -275,8 +300,7 @@ def plan_stops(timeline: list[Action], period: float, duration: float | None) ->
     if duration is not None:
         k_end = math.ceil(duration / period - 1e-9)
         for k in [k for k in by_index if k >= k_end]:
-            del by_index[k]  # nothing happens after the end
-        stop(k_end).end = True
+            del by_index[k]  # nothing happens at or after the end: the flight stops there
     return [by_index[k] for k in sorted(by_index)]
 
 
@@ -295,9 +319,103 @@ def _params_yaml(node: str, params: dict[str, Any], folder: Path) -> Path:
     return path
 
 
+def did_you_mean(name: str, choices: list[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest of ``choices`` (difflib), or ``""``."""
+    close = difflib.get_close_matches(name, choices, n=1, cutoff=0.5)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+#: Parameters every ROS node has: accepted in any section of a ``--params`` file.
+_ROS_BUILTIN_PARAMS = frozenset({"use_sim_time", "start_type_description_service"})
+
+
+def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
+    """The ``--params`` file's parameters per node (``lander_sim``, ``autopilot``).
+
+    Sections: :data:`PARAMS_SECTIONS` (``lander_autopilot`` is the autopilot's package name, accepted
+    for it); each holds only ``ros__parameters``. An unknown section or key is a
+    :class:`LaunchError` naming it and what is allowed (rcl would ignore it without a word).
+    """
+    from lander_autopilot.ros.config import PARAMETER_NAMES as AP_NAMES
+    from lander_sim.ros.config import SPECS as SIM_SPECS
+    from lander_sim.ros.config import check_parameter
+    from lander_sim.yaml_file import read_yaml
+
+    known = {SIM_NODE: set(SIM_SPECS), AUTOPILOT_NODE: set(AP_NAMES)}
+    data = read_yaml(Path(path), "parameters file", LaunchError)
+    allowed = ", ".join(PARAMS_SECTIONS)
+    if not isinstance(data, dict):
+        raise LaunchError(f"--params {path}: expected a mapping of sections ({allowed})")
+    out: dict[str, dict[str, Any]] = {SIM_NODE: {}, AUTOPILOT_NODE: {}}
+    for key, section in data.items():
+        nodes = PARAMS_SECTIONS.get(str(key))
+        if nodes is None:
+            raise LaunchError(f"--params {path}: unknown section {key!r}{did_you_mean(str(key), list(PARAMS_SECTIONS))} "
+                              f"(allowed: {allowed})")
+        if not isinstance(section, dict) or set(section) != {"ros__parameters"} or not isinstance(
+                section["ros__parameters"], dict):
+            raise LaunchError(f"--params {path}: section {key!r} must hold only a 'ros__parameters' mapping")
+        for name, value in section["ros__parameters"].items():
+            for node in nodes:
+                if name not in known[node] | _ROS_BUILTIN_PARAMS:
+                    names = sorted(known[node])
+                    raise LaunchError(f"--params {path}: section {key!r}: {node} has no parameter {name!r}"
+                                      f"{did_you_mean(str(name), names)} (allowed: {', '.join(names)})")
+                if node == SIM_NODE and name not in _ROS_BUILTIN_PARAMS:
+                    reason = check_parameter(name, value)
+                    if reason is not None:
+                        raise LaunchError(f"--params {path}: section {key!r}: {reason}")
+                out[node][name] = value
+    return out
+
+
+def check_plan(plan: FlightPlan) -> str | None:
+    """Check every name and file of ``plan`` before anything starts; returns the controller to fly
+    (None: the sim alone). A bad scene, controller (also in the timeline) or ``--params`` file is a
+    one-line :class:`LaunchError` naming it, with the closest known name."""
+    from lander_autopilot.controllers.registry import available_controllers
+    from lander_sim.scenes import list_scenes, load_scene
+
+    s = str(plan.scene)
+    if not (s.endswith((".yaml", ".yml")) or Path(s).is_file()):
+        infos = list_scenes()
+        if not any(s == i.name or s in i.aliases for i in infos):
+            from lander_tools.scripted import shipped_flights
+
+            names = [i.name for i in infos] + [a for i in infos for a in i.aliases]
+            flights = {p.stem: f"flights/{p.name}" for p in shipped_flights()}
+            close = difflib.get_close_matches(s, names + list(flights), n=1, cutoff=0.5)
+            hint = f"; did you mean {flights.get(close[0], close[0])!r}?" if close else ""
+            raise LaunchError(f"unknown scene {s!r}{hint} ('lander scenes' lists them; scripted flights: flights/*.yaml)")
+    try:
+        load_scene(s)
+    except ValueError as exc:  # a YAML parser's message spans lines: one line for the user
+        raise LaunchError(" ".join(str(exc).split())) from None
+    controller = resolve_controller(plan)
+    names = available_controllers()
+    wanted = [controller] if controller is not None else []
+    wanted += [str(a.value) for a in plan.timeline if a.kind == "controller"]
+    for c in wanted:
+        if c not in names:
+            raise LaunchError(f"unknown controller {c!r}{did_you_mean(c, names)} (known: {', '.join(names)}, or none)")
+    if plan.params_file is not None:
+        read_params_file(plan.params_file)
+    return controller
+
+
 def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dict[str, list[str]]:
-    """The command lines of the node processes (``sim``, ``autopilot`` or ``composed``)."""
-    sim_params = {"scene": plan.scene, "speed": float(plan.speed), "start_paused": True}
+    """The command lines of the node processes (``sim``, ``autopilot`` or ``composed``).
+
+    Each node gets one parameters file: its section of the user's ``--params`` file
+    (:func:`read_params_file`), then the flight's settings, which win."""
+    user = read_params_file(plan.params_file) if plan.params_file is not None else {SIM_NODE: {}, AUTOPILOT_NODE: {}}
+    sim_params = dict(user[SIM_NODE])
+    sim_params.update({
+        "scene": plan.scene, "speed": float(plan.speed), "start_paused": True,
+        # The sim stops by itself at the end instant, and its diagnostics are the flight's only.
+        "end_time": float(plan.duration) if plan.duration is not None else -1.0,
+        "end_on": ",".join(plan.end_on), "idle_diagnostics": False,
+    })
     if controller is not None:
         sim_params["lockstep"] = plan.lockstep is not False
     else:
@@ -305,14 +423,13 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
         # The sim alone holds the last command (the user's or the timeline's) for good.
         sim_params["command_timeout"] = 0.0
     sim_params.update(plan.sim_params)
-    files = []
-    if plan.params_file is not None:
-        files += ["--params-file", str(plan.params_file)]
+    files: list[str] = []
     sim_file = _params_yaml(SIM_NODE, sim_params, folder)
     cmds = {}
     ap_args: list[str] = []
     if controller is not None:
-        ap_params: dict[str, Any] = {"scene": plan.scene, "controller": controller, "use_sim_time": True}
+        ap_params: dict[str, Any] = dict(user[AUTOPILOT_NODE])
+        ap_params.update({"scene": plan.scene, "controller": controller, "use_sim_time": True})
         if plan.controller_params:
             ap_params["controller_params"] = yaml.safe_dump(
                 dict(plan.controller_params), default_flow_style=True, sort_keys=True
@@ -367,48 +484,80 @@ def composed_main(argv: list[str]) -> int:
 # --- the supervisor ---------------------------------------------------------------------------
 
 
+def event_values(msg: Any) -> dict[str, float]:
+    """A FlightEvent's ``values`` by name: the core's events end their detail with
+    ``[values: a, b, ...]`` (lander_sim.ros.convert.event_fields); empty when it does not."""
+    detail = str(msg.detail)
+    _, sep, names = detail.rpartition("[values: ")
+    if not sep or not names.endswith("]"):
+        return {}
+    keys = [k.strip() for k in names[:-1].split(",")]
+    return dict(zip(keys, (float(v) for v in msg.values))) if len(keys) == len(msg.values) else {}
+
+
 class _Supervisor:
-    """The launcher's own node: watches the flight, applies the timeline, records."""
+    """The launcher's own node: watches the flight, applies the timeline, records, counts."""
 
     def __init__(self, plan: FlightPlan, controller: str | None, out: TextIO, progress: Any) -> None:
         import rclpy
         from geometry_msgs.msg import Vector3Stamped
-        from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
-        from lander_interfaces.srv import Reset
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
         from std_msgs.msg import Float64
         from std_srvs.srv import SetBool, Trigger
 
+        from lander_interfaces.msg import (
+            AutopilotStatus,
+            FlightEvent,
+            LanderState,
+            ThrottleCommand,
+        )
+        from lander_interfaces.srv import Reset
         from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
 
         self.plan, self.controller, self.out, self.progress = plan, controller, out, progress
         self.node = rclpy.create_node("lander_fly")
         n = self.node
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        # Latched: an autopilot (re)started mid-flight still gets the demand in force.
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", latched)
         self.pub_wind = n.create_publisher(Vector3Stamped, "/lander/wind", reliable)
         self.pub_throttle = n.create_publisher(ThrottleCommand, "/lander/throttle", reliable)
         self.cli_reset = n.create_client(Reset, "/lander/reset")
         self.cli_resume = n.create_client(Trigger, "/lander/resume")
+        self.cli_subscribers = n.create_client(Trigger, "/lander/subscribers")
         self.cli_stab = n.create_client(SetBool, "/lander/set_stabiliser")
         self.cli_chute = n.create_client(Trigger, "/lander/deploy_parachute")
         self.cli_switch = None
         #: Sim-time driven timeline (pauses at each action instant): every flight with an autopilot.
         self.timed = controller is not None
+        #: The sim waits for the autopilot's answer to every state.
+        self.lockstep = controller is not None and plan.lockstep is not False
         if controller is not None:
-            from lander_interfaces.srv import SwitchController
             from rcl_interfaces.srv import GetParameters, SetParameters
+
+            from lander_interfaces.srv import SwitchController
 
             self.cli_switch = n.create_client(SwitchController, "/autopilot/switch_controller")
             self.cli_ap_get = n.create_client(GetParameters, "/autopilot/get_parameters")
             self.cli_sim_set = n.create_client(SetParameters, f"/{SIM_NODE}/set_parameters")
             self.cli_sim_get = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
-            from rosgraph_msgs.msg import Clock
-
             n.create_subscription(Clock, "/clock", self._on_clock, reliable)
-            n.create_subscription(ThrottleCommand, "/lander/throttle", self._on_throttle, reliable)
+        #: Messages this node received per topic since the flight's reset (the reference for the
+        #: bag's counts of the topics the sim does not count), and those it published itself.
+        self.received: dict[str, int] = {}
+        self.sent: dict[str, int] = {}
+        self.subs = {
+            "/lander/state": n.create_subscription(LanderState, "/lander/state", self._on_state, reliable),
+            "/lander/events": n.create_subscription(FlightEvent, "/lander/events", self._on_event, QoSProfile(depth=1000)),
+            "/lander/throttle": n.create_subscription(ThrottleCommand, "/lander/throttle", self._on_throttle, reliable),
+        }
+        if controller is not None:
+            self.subs["/autopilot/status"] = n.create_subscription(
+                AutopilotStatus, "/autopilot/status", lambda _m: self._count("/autopilot/status"), reliable)
         self.answered_first = False  #: the autopilot answered state 1 (the reset's) since the last reset
+        self.last_answer = 0  #: highest state sequence answered on /lander/throttle since the reset
         self.clock_t = 0.0  #: latest /clock [s]: where a paused sim stands before its state is out
         self.types = {"Float64": Float64, "Vector3Stamped": Vector3Stamped, "ThrottleCommand": ThrottleCommand}
         self.LanderState, self.FlightEvent = LanderState, FlightEvent
@@ -416,16 +565,17 @@ class _Supervisor:
         self.states = 0
         self.t = 0.0
         self.last_state_wall = time.monotonic()
-        self.end: str | None = None
-        self.end_t: float | None = None  #: sim time of the state that ended the flight
-        self.touchdown: float | None = None
+        #: The sim's FLIGHT_ENDED, decoded (lander_sim.ros.flight_span.FlightEnd): the flight is over.
+        self.flight_end: Any = None
+        #: Named values of the LANDED / CRASHED event (t_impact [s], descent_rate [m/s], ...).
+        self.touchdown: dict[str, float] = {}
+        self.touchdown_class = ""  #: safe / hard / crash, from the event's kind
+        self.gimbal_locks: list[float] = []  #: sim times [s] of GIMBAL_LOCK events (printed once, counted)
         self.pending = sorted(plan.timeline, key=lambda a: a.t)
         self.held_throttle: Action | None = None
         self.futures: list[Any] = []
         #: This node answers every state (lockstep) when the flight has no autopilot.
         self.pilot = pilot_mode(plan, controller)
-        n.create_subscription(LanderState, "/lander/state", self._on_state, reliable)
-        n.create_subscription(FlightEvent, "/lander/events", self._on_event, QoSProfile(depth=1000))
         self.recorder = None
         if plan.record is not None:
             meta = {"scene": plan.scene, "controller": controller or "none", "speed": str(plan.speed)}
@@ -433,32 +583,36 @@ class _Supervisor:
             meta.update(plan.meta)
             self.recorder = Recorder(n, RecorderConfig(plan.record, plan.storage, plan.topics or DEFAULT_TOPICS, meta=meta))
 
+    @property
+    def end(self) -> str | None:
+        """How the flight ended (time-limit, landed, crashed), once the sim announced it."""
+        return None if self.flight_end is None else self.flight_end.reason
+
     # callbacks ------------------------------------------------------------------------------
+    def _count(self, topic: str) -> None:
+        self.received[topic] = self.received.get(topic, 0) + 1
+
     def _on_throttle(self, msg: Any) -> None:
+        self._count("/lander/throttle")
         if msg.state_sequence == 1:
             self.answered_first = True
+        self.last_answer = max(self.last_answer, int(msg.state_sequence))
 
     def _on_clock(self, msg: Any) -> None:
         self.clock_t = msg.clock.sec + 1e-9 * msg.clock.nanosec
 
     def _on_state(self, msg: Any) -> None:
+        self._count("/lander/state")
         self.state = msg
         self.states += 1
         self.t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         self.last_state_wall = time.monotonic()
         self.progress.update(self.t, msg.altitude)
-        if self.end is None:
-            if msg.phase == self.LanderState.PHASE_LANDED and "landed" in self.plan.end_on:
-                self.end = "landed"
-            elif msg.phase == self.LanderState.PHASE_CRASHED and "crashed" in self.plan.end_on:
-                self.end = "crashed"
-            elif self.plan.duration is not None and self.t >= self.plan.duration - 1e-9:
-                self.end = "time-limit"
-        if self.end is not None:
-            if self.end_t is None:
-                self.end_t = self.t
-            return  # no more actions or answers: in lockstep the sim now waits to be paused
-        self._apply_due()  # timed flights: only throttle overrides are left in `pending` (fly())
+        # Nothing is applied at the end instant (the first at or after the duration) or later; the
+        # pilot still answers the end state, as an autopilot does, so the bag is the same every time.
+        at_end = self.flight_end is not None or (self.plan.duration is not None and self.t >= self.plan.duration - 1e-9)
+        if not at_end:
+            self._apply_due()  # timed flights: only throttle overrides are left in `pending` (fly())
         held = self.held_throttle
         if held is not None and held.until is not None and self.t >= held.until - 1e-9:
             self.held_throttle = held = None
@@ -472,41 +626,59 @@ class _Supervisor:
             self._send_throttle(held.value, 0)
 
     def _on_event(self, msg: Any) -> None:
-        if msg.kind in (self.FlightEvent.LANDED, self.FlightEvent.CRASHED) and msg.values:
-            self.touchdown = float(msg.values[0])
-        if msg.kind in (self.FlightEvent.LANDED, self.FlightEvent.CRASHED, self.FlightEvent.GIMBAL_LOCK,
-                        self.FlightEvent.CONTROLLER_SWITCHED, self.FlightEvent.FUEL_OUT):
-            self.out.write(f"[fly] event at t = {msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec:.2f} s: {msg.detail}\n")
+        from lander_sim.ros.flight_span import FlightEnd
+
+        self._count("/lander/events")
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        E = self.FlightEvent
+        if msg.kind == E.FLIGHT_ENDED:
+            try:
+                self.flight_end = FlightEnd.from_values(list(msg.values))
+            except ValueError as exc:
+                self.out.write(f"[fly] ignored a malformed FLIGHT_ENDED: {exc}\n")
+            return
+        if msg.kind in (E.LANDED, E.HARD_LANDING, E.CRASHED):
+            self.touchdown = event_values(msg)  # touchdown figures: the event's own named values
+            self.touchdown_class = {E.LANDED: "safe", E.HARD_LANDING: "hard"}.get(msg.kind, "crash")
+        if msg.kind == E.GIMBAL_LOCK:
+            # The angles can flap in and out of the near-lock region: report the first, count the rest.
+            self.gimbal_locks.append(t)
+            if len(self.gimbal_locks) > 1:
+                return
+        if msg.kind in (E.LANDED, E.HARD_LANDING, E.CRASHED, E.GIMBAL_LOCK, E.CONTROLLER_SWITCHED, E.FUEL_OUT,
+                        E.LANDING_UNREACHABLE):
+            self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
+
+    def _publish(self, pub: Any, msg: Any) -> None:
+        pub.publish(msg)
+        self.sent[pub.topic_name] = self.sent.get(pub.topic_name, 0) + 1
 
     def _send_throttle(self, values: list[float], seq: int) -> None:
         m = self.types["ThrottleCommand"]()
         m.header.stamp = self.state.header.stamp
         m.state_sequence = int(seq)  # 0: an override that answers no particular state
         m.throttles = [float(v) for v in values]
-        self.pub_throttle.publish(m)
+        self._publish(self.pub_throttle, m)
 
     def _apply_due(self) -> None:
         while self.pending and self.pending[0].t <= self.t + 1e-9:
-            self.apply(self.pending.pop(0))
+            self.apply(self.pending.pop(0), self.t)
 
-    def apply(self, a: Any) -> None:
-        """Carry out one timeline action now."""
+    def apply(self, a: Any, at: float) -> None:
+        """Carry out one timeline action now; ``at`` [s] is the sim instant it applies at (logged)."""
         from std_srvs.srv import SetBool, Trigger
 
-        self.out.write(f"[fly] t = {self.t:.2f} s: {a.kind} {a.value if a.value is not None else ''}\n")
+        self.out.write(f"[fly] t = {at:.2f} s: {a.kind} {a.value if a.value is not None else ''}\n")
         if a.kind == "demand_altitude":
             m = self.types["Float64"]()
             m.data = float(a.value)
-            self.pub_demand.publish(m)
+            self._publish(self.pub_demand, m)
         elif a.kind == "wind":
             m = self.types["Vector3Stamped"]()
-            if self.timed:  # the sim stands at /clock's instant (its state is held back until resume)
-                m.header.stamp.sec, m.header.stamp.nanosec = divmod(round(self.clock_t * 1e9), 1_000_000_000)
-            elif self.state is not None:
-                m.header.stamp = self.state.header.stamp
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(round(at * 1e9), 1_000_000_000)
             m.header.frame_id = "mars"
             m.vector.x, m.vector.y, m.vector.z = (float(v) for v in a.value)
-            self.pub_wind.publish(m)
+            self._publish(self.pub_wind, m)
         elif a.kind == "throttle":
             self.held_throttle = a  # sent with the answer to the current state (see _on_state)
         elif a.kind == "controller":
@@ -559,12 +731,12 @@ def _arm(executor: Any, sup: _Supervisor, t: float) -> None:
         raise LaunchError(f"the sim refused pause_at = {t}: {res.results[0].reason}")
 
 
-def _apply_now(executor: Any, sup: _Supervisor, a: Action) -> None:
-    """Apply ``a`` while the sim is paused and wait until it is in force (demand, services)."""
+def _apply_now(executor: Any, sup: _Supervisor, a: Action, at: float) -> None:
+    """Apply ``a`` at instant ``at`` [s] while the sim is paused there, and wait until it is in force."""
     from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters
 
-    sup.apply(a)
+    sup.apply(a, at)
     if a.kind == "demand_altitude":
         # Topic to the autopilot; its parameter says when the new demand is in force.
         deadline = time.monotonic() + CONFIRM_TIMEOUT
@@ -600,16 +772,284 @@ def _call(executor: Any, client: Any, request: Any, timeout: float, what: str) -
     return fut.result()
 
 
+# --- the phases of a flight -------------------------------------------------------------------
+
+
+@dataclass
+class LaunchedFlight:
+    """One flight being flown: its plan, its node processes and this process's own ROS side."""
+
+    plan: FlightPlan
+    controller: str | None
+    out: TextIO
+    progress: Any
+    env: dict[str, str] | None = None
+    procs: dict[str, NodeProcess] = field(default_factory=dict)
+    sup: _Supervisor | None = None
+    executor: Any = None
+    stop_reason: list[str] = field(default_factory=list)  #: signals received (SIGINT, SIGTERM)
+    stopped: bool = False  #: stop_nodes() ran
+    folder: Path | None = None  #: where the nodes' parameter files are written
+
+    def spin(self, timeout: float = 0.05) -> None:
+        """One executor pass; raises if a signal arrived or a node process died."""
+        if self.stop_reason:
+            raise _Interrupted()
+        for name, p in self.procs.items():
+            if not p.alive():
+                tail = "\n".join(p.lines[-5:])
+                raise _NodeDied(f"node process {name!r} exited with code {p.proc.returncode}" + (f":\n{tail}" if tail else ""))
+        self.executor.spin_once(timeout_sec=timeout)
+
+    def wait_for(self, done: Any, timeout: float, what: str) -> None:
+        """Spin until ``done()``; LaunchError naming ``what`` after ``timeout`` wall seconds."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > deadline:
+                raise LaunchError(f"{what} within {timeout} s")
+            self.spin()
+
+
+def start_nodes(f: LaunchedFlight) -> None:
+    """Phase 1: this process's node (and recorder), then the node processes, paused."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    assert f.folder is not None
+    cmds = node_commands(f.plan, f.controller, f.folder)
+    rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
+    f.sup = _Supervisor(f.plan, f.controller, f.out, f.progress)
+    f.executor = SingleThreadedExecutor()
+    f.executor.add_node(f.sup.node)
+    for name, argv in cmds.items():
+        f.procs[name] = NodeProcess(name, argv, f.out, f.env)
+    f.out.write(
+        f"[fly] scene {f.plan.scene!r}, controller {f.controller or 'none (sim alone)'}, "
+        f"speed {f.plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in f.procs.items()) + "\n"
+    )
+
+
+def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
+    """Per sim topic, the subscriptions its writer must have matched before the flight starts:
+    this launcher's, the autopilot's and the recorder's (``sub:TOPIC``: publishers the sim's own
+    subscription to TOPIC must have matched)."""
+    from lander_sim.ros.flight_span import COUNTED_TOPICS
+
+    sup = f.sup
+    assert sup is not None
+    need = {"/lander/state": 1, "/lander/events": 1, "sub:/lander/throttle": 1, "sub:/lander/wind": 1}
+    if sup.timed:
+        need["/clock"] = 1
+    if f.controller is not None:
+        need["/lander/state"] += 1
+        need["sub:/lander/throttle"] += 1
+    if sup.recorder is not None:
+        for t in COUNTED_TOPICS:
+            if sup.recorder.wanted(t):
+                need[t] = need.get(t, 0) + 1
+    return need
+
+
+def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
+    """Per topic this process subscribes to (recorder, launcher), the publishers it must have
+    matched: the sim's outputs, the autopilot's and this launcher's own."""
+    from lander_sim.ros.flight_span import COUNTED_TOPICS
+
+    pubs = {t: 1 for t in COUNTED_TOPICS}
+    pubs.update({"/lander/wind": 1, "/lander/demand_altitude": 1, "/lander/throttle": 1})
+    if f.controller is not None:
+        pubs["/lander/throttle"] += 1
+        pubs["/lander/events"] += 1
+        pubs["/autopilot/status"] = 1
+    return pubs
+
+
+def wait_until_matched(f: LaunchedFlight) -> None:
+    """Phase 2: wait until every subscriber the flight needs is matched on every topic it needs.
+
+    Asked from both ends: the sim's writers (``/lander/subscribers``) and this process's readers
+    (the recorder's and the launcher's own). One more observer (a bridge process) is one more
+    entry in :func:`expected_subscribers`."""
+    from std_srvs.srv import Trigger
+
+    from lander_sim.ros.flight_span import parse_matched
+
+    sup = f.sup
+    assert sup is not None
+    need_sim, need_here = expected_subscribers(f), expected_publishers(f)
+    waiting: list[str] = []
+
+    def matched() -> bool:
+        sims = [x for x, _ in sup.node.get_node_names_and_namespaces() if x == SIM_NODE]
+        if len(sims) > 1:
+            raise LaunchError(
+                f"{len(sims)} simulator nodes in ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}: "
+                "another flight is running there; set ROS_DOMAIN_ID (0-101) to keep flights apart"
+            )
+        waiting[:] = []
+        for topic, sub in sup.subs.items():
+            if sub.get_publisher_count() < need_here.get(topic, 1):
+                waiting.append(f"launcher <- {topic}")
+        if sup.recorder is not None:
+            for topic, n in need_here.items():
+                if sup.recorder.wanted(topic) and sup.recorder.matched(topic) < n:
+                    waiting.append(f"recorder <- {topic}")
+        services = (sup.cli_subscribers, sup.cli_reset, sup.cli_resume)
+        if waiting or not all(c.service_is_ready() for c in services):
+            waiting.append("the sim's services")
+            return False
+        res = _call(f.executor, sup.cli_subscribers, Trigger.Request(), STARTUP_TIMEOUT, "subscribers")
+        have = parse_matched(res.message)
+        waiting.extend(f"sim -> {t}" for t, n in need_sim.items() if have.get(t, 0) < n)
+        return not waiting
+
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while not matched():
+        if time.monotonic() > deadline:
+            raise LaunchError(f"nodes not matched within {STARTUP_TIMEOUT} s (still waiting for {', '.join(waiting)})")
+        f.spin()
+
+
+def reset_flight(f: LaunchedFlight) -> list[Stop]:
+    """Phase 3: plan the timeline's stops and arm the first (``pause_at``); reset the sim (state 1
+    at t = 0 goes to everyone matched), wait for that state (and, in lockstep, the autopilot's
+    answer to it), apply the timeline's actions at t = 0. Returns the stops still to come.
+
+    Everything that asks the sim something is done before the reset, so that the flight resumes
+    right after it: a lockstep autopilot waiting long for its second state would report it lost."""
+    from lander_interfaces.srv import Reset
+
+    sup, plan = f.sup, f.plan
+    assert sup is not None
+    stops: list[Stop] = []
+    at_zero: list[Action] = []  # timed flights: actions of instant 0, put in force before the first step
+    if sup.timed:
+        period = _control_period(f.executor, sup, plan)
+        timed = [a for a in sup.pending if a.kind != "throttle"]
+        stops = plan_stops(timed, period, plan.duration)
+        at_zero = [a for a in timed if math.ceil(a.t / period - 1e-9) <= 0]
+        sup.pending = [a for a in sup.pending if a.kind == "throttle"]
+        _arm(f.executor, sup, stops[0].t if stops else -1.0)
+    sup.received.clear()  # counts of the flight: from its reset on
+    sup.answered_first, sup.last_answer = False, 0
+    res = _call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
+    if not res.success:
+        raise LaunchError(f"the sim refused the reset: {res.message}")
+    f.wait_for(lambda: sup.states > 0 and (not sup.lockstep or sup.answered_first), STARTUP_TIMEOUT,
+               "no state 1 from the simulator" + (" (or no answer to it from the autopilot)" if sup.lockstep else ""))
+    for a in at_zero:
+        _apply_now(f.executor, sup, a, 0.0)  # in force (the autopilot took the demand) before the first step
+    sup._apply_due()  # untimed flights: actions at t = 0 (e.g. a throttle override) before the first step
+    return stops
+
+
+def run_to_end(f: LaunchedFlight, stops: list[Stop]) -> None:
+    """Phase 4: resume, apply the timeline at its stops, until the sim announces the end."""
+    from std_srvs.srv import Trigger
+
+    sup = f.sup
+    assert sup is not None
+    _call(f.executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
+    sup.last_state_wall = time.monotonic()
+    while sup.flight_end is None:
+        if time.monotonic() - sup.last_state_wall > STALL_TIMEOUT:
+            raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
+        f.spin()
+        sup.check_futures()
+        if stops and sup.flight_end is None and sup.clock_t >= stops[0].t - 1e-6:
+            stop = stops.pop(0)  # the sim stands at stop.t, its state not yet out
+            for a in stop.actions:
+                _apply_now(f.executor, sup, a, stop.t)
+            _arm(f.executor, sup, stops[0].t if stops else -1.0)
+            res = _call(f.executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
+            if not res.success:  # the flight ended at this very instant (a touchdown): its event follows
+                f.out.write(f"[fly] {res.message}\n")
+
+
+def stop_nodes(f: LaunchedFlight) -> None:
+    """Phase 5: once the recorder holds every message the sim counted (or after DELIVERY_TIMEOUT),
+    stop the nodes, autopilot first, and take in what they flushed on their way out."""
+    sup = f.sup
+    f.stopped = True
+    if sup is not None and sup.flight_end is not None:
+        # Topics are not ordered among themselves: the end state may still be on its way here.
+        published = sup.flight_end.counts
+        rec = sup.recorder
+        wanted = {t: n for t, n in published.items() if rec is not None and rec.wanted(t)}
+
+        def delivered() -> bool:
+            # In lockstep the autopilot answers the end state too: that answer belongs to the flight.
+            answered = not sup.lockstep or sup.last_answer >= published["/lander/state"]
+            return answered and sup.received.get("/lander/state", 0) >= published["/lander/state"] and all(
+                rec.counts.get(t, 0) >= n for t, n in wanted.items())
+
+        deadline = time.monotonic() + DELIVERY_TIMEOUT
+        while not delivered() and time.monotonic() < deadline:
+            f.executor.spin_once(timeout_sec=0.02)
+    _stop_all(f.procs)
+    if sup is not None and sup.recorder is not None and f.executor is not None:
+        _drain(sup, f.executor)  # what the nodes flushed before they exited is still queued here
+
+
+def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
+    """What the bag must hold per recorded topic: ``(count, exact)``.
+
+    * the sim's own outputs: its FLIGHT_ENDED counts, exactly (``/lander/events`` too when the sim
+      is its only publisher);
+    * ``/lander/throttle``: exactly what this launcher's own subscription received since the reset
+      (nobody commands before the first state);
+    * ``/autopilot/status`` and, with an autopilot, ``/lander/events``: at least that (the
+      autopilot may report before the flight, e.g. its start-up status, which the recorder may
+      hold too);
+    * inputs this launcher published (wind, demand): at least what it sent (anyone may add more).
+    """
+    assert sup.recorder is not None
+    ref: dict[str, tuple[int, bool]] = {}
+    if sup.flight_end is not None:
+        ref.update({t: (n, True) for t, n in sup.flight_end.counts.items()})
+    ref["/lander/throttle"] = (sup.received.get("/lander/throttle", 0), True)
+    if sup.controller is not None:
+        ref["/autopilot/status"] = (sup.received.get("/autopilot/status", 0), False)
+        ref["/lander/events"] = (max(ref.get("/lander/events", (0, False))[0], sup.received.get("/lander/events", 0)),
+                                 False)
+    for t in ("/lander/wind", "/lander/demand_altitude"):
+        ref[t] = (sup.sent.get(t, 0), False)
+    return {t: v for t, v in ref.items() if sup.recorder.wanted(t)}
+
+
+def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
+    """Phase 6: close the bag, print its counts and compare them with :func:`reference_counts`;
+    a missing message makes the result exit :data:`EXIT_INCOMPLETE_BAG` with a line naming it."""
+    sup = f.sup
+    if sup is None or sup.recorder is None:
+        return
+    sup.recorder.writer.set_custom_data("outcome", result.outcome)
+    counts = sup.recorder.close()
+    result.counts, result.bag = counts, f.plan.record
+    f.out.write(sup.recorder.summary() + "\n")
+    if sup.flight_end is None:
+        result.bag_check = "not checked: the flight did not reach its end"
+        return
+    bad = []
+    for t, (n, exact) in sorted(reference_counts(sup).items()):
+        got = counts.get(t, 0)
+        if got < n or (exact and got != n):
+            bad.append(f"{t} {got} of {n}")
+    if bad:
+        result.bag_check = "INCOMPLETE: " + ", ".join(bad) + " published"
+        if result.exit_code in (EXIT_OK, EXIT_CRASHED):
+            result.exit_code = EXIT_INCOMPLETE_BAG
+    else:
+        result.bag_check = "complete: every message published in the flight is in it"
+
+
 def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: dict[str, str] | None = None) -> FlightResult:
-    """Fly ``plan`` to its end and return how it ended (see the module docstring for the steps).
+    """Fly ``plan`` to its end and return how it ended: the phases of the module docstring, in order.
 
     Must run in the main thread (it installs SIGINT/SIGTERM handlers for the duration).
     """
     import rclpy
-    from lander_interfaces.srv import Reset
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
-    from std_srvs.srv import Trigger
 
     from lander_tools.progress import Progress
 
@@ -618,151 +1058,71 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         plan.duration = scene_end_time(plan.scene)  # the scene's own end.max_time, if it has one
     progress = progress or Progress(total=plan.duration)
     wall0 = time.monotonic()
-    controller = resolve_controller(plan)
-    stop_reason: list[str] = []
+    try:
+        controller = check_plan(plan)
+    except LaunchError as exc:
+        progress.finish()
+        return FlightResult("error", EXIT_ERROR, 0.0, 0, str(exc))
+    f = LaunchedFlight(plan, controller, out, progress, env)
 
     def on_signal(signum: int, _frame: Any) -> None:
-        stop_reason.append(signal.Signals(signum).name)
+        f.stop_reason.append(signal.Signals(signum).name)
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     tmp = tempfile.TemporaryDirectory(prefix="lander-fly-")
-    procs: dict[str, NodeProcess] = {}
-    executor: Any = None
-    sup: _Supervisor | None = None
+    f.folder = Path(tmp.name)
     result: FlightResult | None = None
-    ctx_started = False
     try:
-        cmds = node_commands(plan, controller, Path(tmp.name))
-        rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
-        ctx_started = True
-        sup = _Supervisor(plan, controller, out, progress)
-        executor = SingleThreadedExecutor()
-        executor.add_node(sup.node)
-        for name, argv in cmds.items():
-            procs[name] = NodeProcess(name, argv, out, env)
-        out.write(
-            f"[fly] scene {plan.scene!r}, controller {controller or 'none (sim alone)'}, "
-            f"speed {plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in procs.items()) + "\n"
-        )
-
-        def check_children() -> None:
-            for name, p in procs.items():
-                if not p.alive():
-                    tail = "\n".join(p.lines[-5:])
-                    raise _NodeDied(f"node process {name!r} exited with code {p.proc.returncode}" + (f":\n{tail}" if tail else ""))
-
-        # Discovery: the nodes' endpoints and (if recording) the recorder's subscriptions.
-        deadline = time.monotonic() + STARTUP_TIMEOUT
-        need = ["/lander/state", "/clock"] + (["/lander/throttle", "/autopilot/status"] if controller else [])
-
-        def ready() -> bool:
-            n = sup.node
-            sims = [x for x, _ in n.get_node_names_and_namespaces() if x == SIM_NODE]
-            if len(sims) > 1:
-                raise LaunchError(
-                    f"{len(sims)} simulator nodes in ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}: "
-                    "another flight is running there; set ROS_DOMAIN_ID (0-101) to keep flights apart"
-                )
-            if not sup.cli_reset.service_is_ready() or n.count_publishers("/lander/state") < 1:
-                return False
-            own_state_subs = 1 + int(sup.recorder is not None and "/lander/state" in sup.recorder.subscribed())
-            if controller is not None and (
-                n.count_subscribers("/lander/state") <= own_state_subs or n.count_publishers("/lander/throttle") < 2
-            ):
-                return False  # the autopilot listens to states and has its command publisher up
-            if sup.recorder is not None:
-                sup.recorder.discover()
-                return all(t in sup.recorder.subscribed() for t in need if sup.recorder.wanted(t))
-            return True
-
-        while not ready():
-            check_children()
-            if stop_reason:
-                raise _Interrupted()
-            if time.monotonic() > deadline:
-                raise LaunchError(f"nodes not ready within {STARTUP_TIMEOUT} s (waiting for {', '.join(need)} and /lander/reset)")
-            executor.spin_once(timeout_sec=0.05)
-        # Reset republishes state 1 at t = 0 now that everyone listens; retried if it was missed.
-        # The sim publishes one state per instant (resume publishes nothing), so in lockstep the
-        # autopilot must have answered state 1 before time runs: reset again if it missed it.
-        def reset_seen(seen: int) -> bool:
-            return sup.states > seen and (controller is None or sup.answered_first)
-
-        for attempt in range(5):
-            seen = sup.states
-            sup.answered_first = False
-            _call(executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
-            t_wait = time.monotonic() + 1.0 + attempt
-            while not reset_seen(seen) and time.monotonic() < t_wait:
-                executor.spin_once(timeout_sec=0.02)
-            if reset_seen(seen):
-                break
-        else:
-            raise LaunchError("no state from the simulator (or no answer from the autopilot) after reset")
-        sup._apply_due()  # actions at t = 0 (e.g. the first demand) before the first step
-        stops: list[Stop] = []
-        if sup.timed:
-            period = _control_period(executor, sup, plan)
-            stops = plan_stops([a for a in sup.pending if a.kind != "throttle"], period, plan.duration)
-            sup.pending = [a for a in sup.pending if a.kind == "throttle"]
-            _arm(executor, sup, stops[0].t if stops else -1.0)
-        _call(executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
-        sup.last_state_wall = time.monotonic()
-        while sup.end is None:
-            if stop_reason:
-                raise _Interrupted()
-            check_children()
-            if time.monotonic() - sup.last_state_wall > STALL_TIMEOUT:
-                raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
-            executor.spin_once(timeout_sec=0.05)
-            sup.check_futures()
-            if stops and sup.end is None and sup.clock_t >= stops[0].t - 1e-6:
-                stop = stops.pop(0)  # the sim stands at stop.t, its state not yet out
-                for a in stop.actions:
-                    _apply_now(executor, sup, a)
-                # At the end: pause_at = now, so resume publishes the end state and pauses again.
-                _arm(executor, sup, stop.t if stop.end else stops[0].t if stops else -1.0)
-                _call(executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
-        # Stop at once, autopilot first: in lockstep the sim then waits for an answer that never
-        # comes, so it cannot run on (a pause request can wait behind a busy lockstep loop).
-        _stop_all(procs)
-        code = EXIT_CRASHED if sup.end == "crashed" else EXIT_OK
-        result = FlightResult(sup.end, code, sup.end_t if sup.end_t is not None else sup.t, sup.states)
-        if sup.state is not None:
-            result.final = final_state(sup.state)
+        start_nodes(f)
+        wait_until_matched(f)
+        stops = reset_flight(f)
+        run_to_end(f, stops)
+        sup = f.sup
+        assert sup is not None and sup.flight_end is not None
+        stop_nodes(f)
+        end = sup.flight_end
+        result = FlightResult(end.reason, EXIT_CRASHED if end.reason == "crashed" else EXIT_OK, end.t, sup.states)
     except _Interrupted:
-        result = FlightResult("interrupted", EXIT_INTERRUPTED, sup.t if sup else 0.0, sup.states if sup else 0,
-                              f"stopped by {stop_reason[0] if stop_reason else 'signal'}")
+        result = _failed(f, "interrupted", EXIT_INTERRUPTED, f"stopped by {f.stop_reason[0] if f.stop_reason else 'signal'}")
     except _NodeDied as exc:
-        result = FlightResult("error", EXIT_ERROR, sup.t if sup else 0.0, sup.states if sup else 0, str(exc))
+        result = _failed(f, "error", EXIT_ERROR, str(exc))
     except (LaunchError, ValueError, OSError) as exc:
-        result = FlightResult("error", EXIT_ERROR, sup.t if sup else 0.0, sup.states if sup else 0, str(exc))
+        result = _failed(f, "error", EXIT_ERROR, str(exc))
     finally:
         progress.finish()
-        _stop_all(procs)
-        if sup is not None and sup.recorder is not None and result is not None and executor is not None:
-            _drain(sup, executor)  # what the nodes sent before they stopped is still queued here
-        if sup is not None and sup.recorder is not None:
-            if result is not None:
-                # The flight's end, so analysis can ignore states the sim produced while stopping.
-                sup.recorder.writer.set_custom_data("end_time", repr(sup.end_t if sup.end_t is not None else sup.t))
-                sup.recorder.writer.set_custom_data("outcome", result.outcome)
-            counts = sup.recorder.close()
-            if result is not None:
-                result.counts, result.bag = counts, plan.record
-            out.write(sup.recorder.summary() + "\n")
-        if sup is not None:
-            sup.node.destroy_node()
-        if ctx_started:
+        if result is None:  # an unexpected exception is on its way out: still stop everything
+            _stop_all(f.procs)
+        if result is not None:
+            if not f.stopped:
+                stop_nodes(f)
+            close_and_check_bag(f, result)
+        elif f.sup is not None and f.sup.recorder is not None:
+            f.sup.recorder.close()
+        if f.sup is not None:
+            f.sup.node.destroy_node()
+        if rclpy.ok():
             rclpy.try_shutdown()
         tmp.cleanup()
         for s, h in old.items():
             signal.signal(s, h)
     assert result is not None
     result.wall_time = time.monotonic() - wall0
-    if sup is not None and sup.touchdown is not None:
-        result.message = (result.message + f" touchdown speed {sup.touchdown:.3f} m/s").strip()
+    sup = f.sup
+    if sup is not None:
+        if sup.state is not None:
+            result.final = final_state(sup.state)
+        result.touchdown = dict(sup.touchdown)
+        result.touchdown_class = sup.touchdown_class
+        if len(sup.gimbal_locks) > 1:
+            ts = sup.gimbal_locks
+            out.write(f"[fly] gimbal lock: {len(ts)} events in all, t = {ts[0]:.2f} to {ts[-1]:.2f} s "
+                      "(only the first is shown)\n")
     return result
+
+
+def _failed(f: LaunchedFlight, outcome: str, code: int, message: str) -> FlightResult:
+    sup = f.sup
+    return FlightResult(outcome, code, sup.t if sup else 0.0, sup.states if sup else 0, message)
 
 
 def _stop_all(procs: dict[str, NodeProcess]) -> None:
@@ -801,15 +1161,18 @@ class _NodeDied(Exception):
 
 
 def final_state(msg: Any) -> dict[str, float]:
-    """What a pilot reads off the last LanderState: altitude, rates, fuel and the tilt of the
-    body z axis from the local vertical (the message's orientation components are the core's
-    quaternion, lander_sim.ros.convert)."""
+    """What a pilot reads off the last LanderState: altitude [m], climb rate [m/s], ground speed
+    [m/s], fuel [kg] and the tilt [deg] of the body z axis from the local vertical (the message's
+    orientation components are the core's quaternion, lander_sim.ros.convert). Altitude and tilt
+    are NaN where they do not apply: a fixed pivot (the rotor scenes, position r = 0) has no
+    local vertical."""
     from lander_tools.sweep.metrics import altitude_and_tilt
 
     o, p = msg.orientation, msg.position
-    _, tilt = altitude_and_tilt(np.array([p.x, p.y, p.z]), np.array([o.w, o.x, o.y, o.z]))
+    r = np.array([p.x, p.y, p.z])
+    altitude, tilt = altitude_and_tilt(r, np.array([o.w, o.x, o.y, o.z]))
     return {
-        "altitude": float(msg.altitude),
+        "altitude": float(msg.altitude) if math.isfinite(altitude) else math.nan,
         "climb_rate": float(msg.climb_rate),
         "ground_speed": float(msg.ground_speed),
         "fuel": float(msg.fuel_mass),
@@ -817,23 +1180,45 @@ def final_state(msg: Any) -> dict[str, float]:
     }
 
 
+def _figure(value: float, fmt: str, unit: str) -> str:
+    return f"{value:{fmt}} {unit}" if math.isfinite(value) else "n/a"
+
+
 def summary(result: FlightResult) -> str:
-    """The short flight summary ``lander fly`` prints."""
+    """The flight summary ``lander fly`` prints: every figure named, with its unit; "n/a" where a
+    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot)."""
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
     lines = [
-        f"flight ended: {result.outcome} at t = {result.sim_time:.2f} s "
-        f"({result.states} states, {result.wall_time:.1f} s wall, RTF {rtf:.1f}x), exit code {result.exit_code}"
+        f"flight ended: {result.outcome} at sim time t = {result.sim_time:.2f} s "
+        f"({result.states} states; {result.wall_time:.1f} s wall time, real-time factor {rtf:.1f}x), "
+        f"exit code {result.exit_code}"
     ]
     if result.message:
         lines.append(f"  {result.message}")
     f = result.final
     if f:
         lines.append(
-            f"  last state: altitude {f['altitude']:.2f} m, climb rate {f['climb_rate']:+.3f} m/s, "
-            f"ground speed {f['ground_speed']:.3f} m/s, tilt {f['tilt_deg']:.2f} deg, fuel {f['fuel']:.2f} kg"
+            f"  last state: altitude {_figure(f['altitude'], '.2f', 'm')}, "
+            f"climb rate {_figure(f['climb_rate'], '+.3f', 'm/s')}, "
+            f"ground speed {_figure(f['ground_speed'], '.3f', 'm/s')}, tilt {_figure(f['tilt_deg'], '.2f', 'deg')}, "
+            f"fuel {_figure(f['fuel'], '.2f', 'kg')}"
         )
+    # Touchdown figures come from the LANDED/CRASHED event's own named values (the core's
+    # touchdown classification), never from the last state.
+    td = result.touchdown
+    if td:
+        figures = [f"descent rate {_figure(td.get('descent_rate', math.nan), '.2f', 'm/s')}",
+                   f"ground speed {_figure(td.get('ground_speed', math.nan), '.2f', 'm/s')}"]
+        units = {"tilt_deg": ("tilt", ".2f", "deg"), "fuel_left": ("fuel left", ".2f", "kg")}
+        figures += [f"{units[k][0]} {_figure(v, units[k][1], units[k][2])}" if k in units else f"{k} {v:.6g} (SI)"
+                    for k, v in td.items() if k not in ("descent_rate", "ground_speed", "t_impact")]
+        if result.touchdown_class:
+            figures.append(f"{result.touchdown_class} (against the scene's touchdown limits)")
+        lines.append(f"  touchdown at t = {_figure(td.get('t_impact', math.nan), '.3f', 's')}: " + ", ".join(figures))
+    elif f:
+        lines.append("  touchdown: n/a (none in this flight)")
     if result.bag is not None:
-        lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages)")
+        lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages; {result.bag_check})")
     return "\n".join(lines)
 
 

@@ -8,9 +8,13 @@ Run (project venv)::
 
 Subscriptions are made with ``raw=True``: the CDR bytes go straight into a
 ``rosbags`` Writer, never deserialised. Topics are discovered by name and type
-from the ROS graph (a topic that appears later is picked up when it appears);
-the subscription's reliability and durability follow the publishers'
-(reliable when every publisher is), with a deep queue so bursts are kept.
+from the ROS graph (a topic that appears later is picked up when it appears).
+The subscription is compatible with every publisher, whatever QoS it offers:
+durability VOLATILE (which matches volatile and transient-local writers alike) and
+reliability RELIABLE when every publisher seen is reliable, else BEST_EFFORT (which matches
+both), with a deep queue so bursts are kept. A volatile reader gets no history: a latched
+topic (``/lander/demand_altitude``) is recorded from the moment the recorder is matched, so
+``lander fly`` starts a flight only once the recorder is matched on every topic.
 The recorder runs in a node and executor thread of its own (the C++
 EventsExecutor where available), so it keeps up with the full stack at speed 0
 whatever its owner's thread does; the nodes' own deep writer histories
@@ -200,14 +204,15 @@ class Recorder:
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
         pubs = self.node.get_publishers_info_by_topic(topic)
-        reliable = bool(pubs) and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in pubs)
-        latched = bool(pubs) and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in pubs)
-        # A reliable subscription would not match a best-effort publisher: follow the publishers.
+        reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in pubs)
+        # A reliable reader would not match a best-effort writer, a transient-local reader not a
+        # volatile one (a user's `ros2 topic pub` or default-QoS publisher): VOLATILE always, and
+        # RELIABLE only while no publisher is best-effort, so every publisher is matched.
         return QoSProfile(
             history=HistoryPolicy.KEEP_LAST,
             depth=QUEUE_DEPTH,
-            reliability=ReliabilityPolicy.RELIABLE if reliable or not pubs else ReliabilityPolicy.BEST_EFFORT,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.VOLATILE,
         )
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
@@ -239,6 +244,11 @@ class Recorder:
             counts[topic] += 1
 
         return on_message
+
+    def matched(self, topic: str) -> int:
+        """Publishers the recorder's reader on ``topic`` has matched (0: not subscribed yet)."""
+        sub = self._subs.get(topic)
+        return 0 if sub is None else sub.get_publisher_count()
 
     def subscribed(self) -> list[str]:
         # list() copies in one step under the GIL: the recorder thread may be adding topics.

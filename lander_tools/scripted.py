@@ -213,6 +213,19 @@ def load_script(path: str | Path) -> Script:
     return parse_script(read_yaml(p, "scripted flight", ScriptError), str(p))
 
 
+def check_flight_path(arg: str | Path) -> None:
+    """A ``.yaml`` argument that is no file: ScriptError naming it, with the closest shipped flight."""
+    import difflib
+
+    p = Path(arg)
+    if p.suffix not in (".yaml", ".yml") or p.is_file():
+        return
+    flights = {f.name: f"flights/{f.name}" for f in shipped_flights()}
+    close = difflib.get_close_matches(p.name, list(flights), n=1, cutoff=0.5)
+    hint = f"; did you mean {flights[close[0]]!r}?" if close else ""
+    raise ScriptError(f"no such flight or scene file {str(arg)!r}{hint}")
+
+
 def shipped_flights() -> list[Path]:
     """The scripted flights shipped in ``flights/``."""
     return sorted((Path(__file__).resolve().parents[1] / "flights").glob("*.yaml"))

@@ -100,6 +100,15 @@ class AltitudeController(Controller):
         m = self.vehicle.mass(state.fuel)
         return (m / self.T_v * self.vertical_acceleration(h, hd, demand)) * self._ones
 
+    def compiled_form(self) -> object | None:
+        """This law as a :class:`~.compiled.CompiledLaw` (None if a subclass changed the law)."""
+        from .compiled import AltitudeLaw, AttitudeLaw, CompiledLaw, keeps_law
+
+        if not keeps_law(self, AltitudeController, "command", "vertical_acceleration", "update"):
+            return None
+        return CompiledLaw(AltitudeLaw.STATE_FEEDBACK, AttitudeLaw.NONE, self.n_thrusters, self.vehicle.dry_mass,
+                           T_v=self.T_v, k_altitude=np.array([self._kz, self._kzd, 0.0]))
+
 
 class AltitudePController(AltitudeController):
     """P-only variant (``k2 = 0``) of :class:`AltitudeController`: poles at ``+-j sqrt(T_v k1 / m)`` (eq 21)."""
@@ -160,6 +169,15 @@ class IntegralAltitudeController(Controller):
                 self.integral += err * dt
         self._t_last = t
         return throttle * self._ones
+
+    def compiled_form(self) -> object | None:
+        """This law as a :class:`~.compiled.CompiledLaw` (None if a subclass changed the law)."""
+        from .compiled import AltitudeLaw, AttitudeLaw, CompiledLaw, keeps_law
+
+        if not keeps_law(self, IntegralAltitudeController, "command", "update", "reset"):
+            return None
+        return CompiledLaw(AltitudeLaw.INTEGRAL, AttitudeLaw.NONE, self.n_thrusters, self.vehicle.dry_mass,
+                           T_v=self.T_v, k_altitude=np.array(self._k, dtype=float))
 
 
 

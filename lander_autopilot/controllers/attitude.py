@@ -43,6 +43,18 @@ class _AttitudeLaw(Controller):
     def _scale(self, state: StateView) -> float:
         return self.vehicle.mass(state.fuel) / self.design_mass if self._mass_scaled else 1.0
 
+    def compiled_form(self) -> object | None:
+        """This law as a :class:`~.compiled.CompiledLaw` (None if a subclass changed the law)."""
+        from .compiled import AltitudeLaw, AttitudeLaw, CompiledLaw, keeps_law
+
+        kinds = {EulerAttitudeController: AttitudeLaw.EULER, QuaternionAttitudeController: AttitudeLaw.QUATERNION}
+        base = next((b for b in kinds if isinstance(self, b)), None)
+        if base is None or not keeps_law(self, base, "command", "error", "update", "_scale"):
+            return None
+        return CompiledLaw(AltitudeLaw.NONE, kinds[base], self.n_thrusters, self.vehicle.dry_mass,
+                           K_attitude=np.array(self.K, dtype=float), attitude_design_mass=self.design_mass,
+                           attitude_mass_scaled=self._mass_scaled)
+
 
 class EulerAttitudeController(_AttitudeLaw):
     """Euler-angle attitude feedback (eq 28): ``u = -K [E - E_d, omega - omega_d]``, ``K`` (N x 6).

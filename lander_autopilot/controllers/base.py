@@ -21,6 +21,11 @@ from lander_sim.physics.vehicle import Vehicle
 UPRIGHT_EULER: tuple[float, float, float] = (0.0, math.pi / 2.0, 0.0)
 
 
+#: Largest horizontal speed a demand may ask for [m/s]: well beyond anything the lander can fly
+#: near the ground (its thrust gives at most ~g of horizontal acceleration); more is a typo.
+MAX_DEMAND_SPEED = 200.0
+
+
 class ControllerError(ValueError):
     """Bad controller request: unknown name, unknown or ill-shaped parameter (the message names it)."""
 
@@ -41,11 +46,16 @@ class Demand:
         Demand ZXZ Euler angles ``(phi, theta, psi)`` [rad]; default upright on the -y axis.
     omega_B : tuple of 3 floats
         Demand body rate [rad/s]; default at rest.
+    velocity : tuple of 2 floats or None
+        Demand horizontal velocity ``(v_east, v_north)`` [m/s] in the local ENU frame
+        (``local_enu``, :mod:`lander_autopilot.design.translational`); ``None``: no velocity
+        demand (laws that control ground speed then hold it at zero). ``|v| <= MAX_DEMAND_SPEED``.
     """
 
     altitude: float = 500.0
     attitude: tuple[float, float, float] = UPRIGHT_EULER
     omega_B: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    velocity: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -66,6 +76,18 @@ class Demand:
             if len(t) != 3 or not all(math.isfinite(c) for c in t):
                 raise DemandError(f"demand {name} must be 3 finite numbers, got {v!r}")
             object.__setattr__(self, name, t)
+        if self.velocity is not None:
+            try:
+                vel = tuple(float(c) for c in self.velocity)
+            except (TypeError, ValueError):
+                raise DemandError(f"demand velocity must be 2 numbers (east, north) in m/s, got {self.velocity!r}") from None
+            if len(vel) != 2 or not all(math.isfinite(c) for c in vel):
+                raise DemandError(f"demand velocity must be 2 finite numbers (east, north) in m/s, got {self.velocity!r}")
+            if math.hypot(*vel) > MAX_DEMAND_SPEED:
+                raise DemandError(
+                    f"demand velocity {math.hypot(*vel):.6g} m/s is absurd (must be <= {MAX_DEMAND_SPEED:g} m/s)"
+                )
+            object.__setattr__(self, "velocity", vel)
 
 
 @dataclass(frozen=True)
@@ -80,11 +102,38 @@ class ControlOutput:
         True if any throttle was clipped.
     unclipped : ndarray (N,) or None
         The control law's throttles before clipping (diagnostics); optional for plug-ins.
+    mode : str or None
+        The law's current mode (e.g. ``"braking"``), ``None`` for laws without modes. The node
+        publishes it in ``AutopilotStatus.mode`` and each change as a ``MODE_CHANGED`` event.
+    requests : tuple of Request
+        What the law asks of the vehicle or the crew this step (deploy the parachute, report that
+        a safe landing is out of reach); the shell acts on them, a core-only loop too.
     """
 
     throttles: np.ndarray
     saturated: bool
     unclipped: np.ndarray | None = field(default=None, repr=False)
+    mode: str | None = None
+    requests: tuple["Request", ...] = ()
+
+
+#: Request kinds a law may raise (:class:`Request`).
+REQUEST_DEPLOY_PARACHUTE = "deploy_parachute"
+REQUEST_LANDING_UNREACHABLE = "landing_unreachable"
+
+
+@dataclass(frozen=True)
+class Request:
+    """A law's request: ``kind`` (``REQUEST_*``), a one-line ``detail`` and SI ``values``.
+
+    ``deploy_parachute``: the node calls ``/lander/deploy_parachute`` (a core loop calls
+    ``Simulation.deploy_parachute``). ``landing_unreachable``: the node publishes a
+    ``LANDING_UNREACHABLE`` event on ``/lander/events``. Raised once each, not every step.
+    """
+
+    kind: str
+    detail: str
+    values: tuple[tuple[str, float], ...] = ()
 
 
 def saturate(u: np.ndarray) -> ControlOutput:

@@ -65,6 +65,19 @@ class SumController(Controller):
             return out
         return ControlOutput(throttles=out.throttles, saturated=True, unclipped=self._mixed_from)
 
+    def compiled_form(self) -> object | None:
+        """The summed law as a :class:`~.compiled.CompiledLaw`: both parts must have one, and
+        neither this class nor a subclass may change how they are summed."""
+        from .compiled import AltitudeLaw, AttitudeLaw, CompiledLaw, compiled_form, keeps_law
+
+        if not keeps_law(self, SumController, "command", "update", "reset"):
+            return None
+        alt, att = compiled_form(self.altitude), compiled_form(self.attitude)
+        if (alt is None or att is None or alt.attitude is not AttitudeLaw.NONE or att.altitude is not AltitudeLaw.NONE
+                or alt.dry_mass != att.dry_mass or alt.n_thrusters != att.n_thrusters):
+            return None
+        return CompiledLaw.combine(alt, att, self.attitude_priority)
+
 
 class CombinedController(SumController):
     """Altitude state feedback (poles ``(-0.9, -1.1)``) + Euler attitude feedback (poles all -1)."""

@@ -24,6 +24,8 @@ from .altitude import AltitudeController, AltitudePController, BaselineControlle
 from .attitude import EulerAttitudeController, QuaternionAttitudeController
 from .base import Controller, ControllerError
 from .combined import CombinedController, CombinedQuaternionController, IntegralController, LQRController
+from .ground_speed import GroundSpeedController
+from .landing import LandingController
 
 ENTRY_POINT_GROUP = "mars_lander.controllers"
 
@@ -42,6 +44,8 @@ BUILTINS: dict[str, Factory] = {
         CombinedQuaternionController,
         IntegralController,
         LQRController,
+        GroundSpeedController,
+        LandingController,
     )
 }
 

@@ -1,7 +1,9 @@
 """The design report of ``lander design SCENE``: matrices, controllability, gains and poles.
 
-:func:`design_report` builds a JSON-able dict for the altitude model (eq 16) and the attitude
-model (eq 28); :func:`format_report` prints it like seed 2's Octave scripts do.
+:func:`design_report` builds a JSON-able dict for the altitude model (eq 16), the attitude
+model (eq 28) and the full translational + attitude model about the hover
+(:mod:`.translational`: 12 states in the local ENU frame, seed 2 section 6); :func:`format_report`
+prints it like seed 2's Octave scripts do.
 """
 from __future__ import annotations
 
@@ -16,6 +18,15 @@ from .altitude import altitude_model
 from .attitude import UPRIGHT_EULER, attitude_model
 from .controllability import controllability
 from .gains import GainDesign, lqr, place_poles
+from .translational import FULL_STATES, LOCAL_FRAME, full_model
+
+#: Default closed-loop poles of the full model (12): translation slower than attitude, all distinct
+#: (repeated poles beyond rank B = 4 would need place_varga, which is unreliable here).
+FULL_POLES = (-0.4, -0.45, -0.5, -0.55, -0.6, -0.9, -1.0, -1.05, -1.1, -1.15, -1.2, -1.3)
+#: LQR weights of the full model, Bryson's rule: 10 m of position, 1 m/s of velocity, 0.1 rad and
+#: 0.1 rad/s of attitude, a throttle excursion of 0.1 per thruster.
+FULL_Q = (0.01, 0.01, 0.01, 1.0, 1.0, 1.0, 100.0, 100.0, 100.0, 100.0, 100.0, 100.0)
+FULL_R = 100.0
 
 ATTITUDE_STATES = ("phi", "theta", "psi", "wx", "wy", "wz")
 ALTITUDE_STATES = ("z", "z_dot")
@@ -70,6 +81,7 @@ def design_report(
 
     alt = altitude_model(vehicle, fuel, altitude)
     att = attitude_model(vehicle, fuel, E_e)
+    full = full_model(vehicle, fuel, altitude, E_e)
     return {
         "mass": alt.mass,
         "fuel": float(fuel),
@@ -94,6 +106,13 @@ def design_report(
                 LQR_R_ATTITUDE * np.eye(vehicle.n_thrusters),
             ),
         },
+        "translational": {
+            "frame": LOCAL_FRAME,
+            "hover_thrust_acceleration": full.g,
+            **_model_section(
+                full.A, full.B, FULL_STATES, list(FULL_POLES), np.diag(FULL_Q), FULL_R * np.eye(vehicle.n_thrusters)
+            ),
+        },
     }
 
 
@@ -108,7 +127,14 @@ def _fmt_poles(p: list[list[float]]) -> str:
 def format_report(rep: dict[str, Any]) -> str:
     """Human-readable text of :func:`design_report`."""
     lines = [f"mass {rep['mass']:.6g} kg (fuel {rep['fuel']:.6g} kg)"]
-    for key, title in (("altitude", "Altitude model (eq 16)"), ("attitude", "Attitude model (eq 28)")):
+    sections = (
+        ("altitude", "Altitude model (eq 16)"),
+        ("attitude", "Attitude model (eq 28)"),
+        ("translational", "Translational + attitude model (local ENU frame, origin below the hover)"),
+    )
+    for key, title in sections:
+        if key not in rep:
+            continue
         s = rep[key]
         lines.append(f"\n== {title}: x = [{' '.join(s['states'])}]")
         if key == "altitude":

@@ -8,6 +8,9 @@
 * :class:`lander_autopilot.controllers.ControlOutput` -> ``ThrottleCommand`` answering one state
   (``state_sequence`` and ``header.stamp`` copied from it: lockstep and latency measurement).
 * ``AutopilotStatus`` and ``FlightEvent`` filled from the node's bookkeeping.
+* ``geometry_msgs/Vector3Stamped`` on ``/lander/demand_velocity`` -> the demand horizontal velocity
+  ``(east, north)`` [m/s] in the local ENU frame ``local_enu``
+  (:mod:`lander_autopilot.design.translational`).
 
 The test suite converts received messages with these same functions, so the throttles it
 expects are bit-for-bit those the node computes.
@@ -101,3 +104,31 @@ def fill_event(event, *, stamp, kind: int, detail: str, values: Sequence[float] 
     event.kind = int(kind)
     event.detail = detail
     event.values = [float(x) for x in values]
+
+
+def demand_velocity(msg) -> tuple[float, float]:
+    """``(east, north)`` [m/s] of a ``Vector3Stamped`` demand velocity, validated.
+
+    Raises :class:`~lander_autopilot.controllers.DemandError` naming what is wrong: a frame other
+    than ``local_enu``, a non-zero or non-finite ``z`` (the vertical is the demand altitude's),
+    NaN/inf, or an absurd magnitude (above ``MAX_DEMAND_SPEED``).
+    """
+    from lander_autopilot.controllers.base import Demand, DemandError
+    from lander_autopilot.design.translational import LOCAL_FRAME
+
+    frame = msg.header.frame_id
+    if frame != LOCAL_FRAME:
+        raise DemandError(f"demand velocity in frame {frame!r}: expected header.frame_id {LOCAL_FRAME!r} (east, north, up)")
+    v = msg.vector
+    if v.z != 0.0:
+        raise DemandError(f"demand velocity z = {v.z!r} m/s: must be 0 (the vertical follows the demand altitude)")
+    return Demand(velocity=(v.x, v.y)).velocity  # type: ignore[return-value]
+
+
+def fill_demand_status(status, demand, mode: str) -> None:
+    """The demand in force and the controller's mode into an ``AutopilotStatus``."""
+    status.demand_altitude = float(demand.altitude)
+    status.velocity_demanded = demand.velocity is not None
+    ve, vn = demand.velocity if demand.velocity is not None else (0.0, 0.0)
+    status.demand_velocity.x, status.demand_velocity.y, status.demand_velocity.z = float(ve), float(vn), 0.0
+    status.mode = mode

@@ -74,6 +74,8 @@ class ControllerSlot:
         Of the last command sent.
     last_sequence : int
         Sequence of the last state answered (0: none yet).
+    mode : str
+        The active controller's mode after the last step ("" for laws without modes).
     """
 
     def __init__(self, choice: ControllerChoice, demand: Demand) -> None:
@@ -85,6 +87,7 @@ class ControllerSlot:
         self.saturated = False
         self.throttles = np.zeros(choice.vehicle.n_thrusters)
         self.last_sequence = 0
+        self.mode = ""
         choice.controller.reset()
 
     @property
@@ -96,6 +99,7 @@ class ControllerSlot:
         choice.controller.reset()
         old, self.choice = self.choice, choice
         self.steps = 0
+        self.mode = ""
         if len(self.throttles) != choice.vehicle.n_thrusters:
             self.throttles = np.zeros(choice.vehicle.n_thrusters)
         return old
@@ -108,6 +112,11 @@ class ControllerSlot:
     def set_demand_altitude(self, altitude: float) -> None:
         """Replace the demand altitude [m]; on ``DemandError`` the previous demand is kept."""
         self.demand = dataclasses.replace(self.demand, altitude=altitude)
+
+    def set_demand_velocity(self, velocity: tuple[float, float] | None) -> None:
+        """Replace the demand horizontal velocity (ENU ``(east, north)`` [m/s], None: none);
+        raises ``DemandError`` and keeps the previous demand if it is invalid."""
+        self.demand = dataclasses.replace(self.demand, velocity=velocity)
 
     def reject(self, reason: str) -> int:
         """Count one refused input and remember why; return the count."""
@@ -137,5 +146,6 @@ class ControllerSlot:
         self.steps += 1
         self.saturated = bool(out.saturated)
         self.throttles = u
+        self.mode = str(getattr(out, "mode", None) or "")
         return out
 

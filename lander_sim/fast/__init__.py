@@ -51,8 +51,8 @@ class FastLander:
     """
 
     def __init__(self, dyn: Any, renormalise: bool = True) -> None:
-        p = np.zeros(_k.N_PARAMS)
-        self.dyn = dyn
+        from lander_sim.fast.rk_kernels import CompiledModel
+
         names = {m.name: m for m in dyn.models}
         unknown = set(names) - {"gravity", "drag", "parachute", "thrusters"}
         if unknown:
@@ -62,40 +62,15 @@ class FastLander:
         g = names.get("gravity")
         if g is None or not hasattr(g, "gm"):
             raise ValueError("fast path needs inverse-square gravity")
-        p[_k.P_GRAV] = 1.0
-        p[_k.P_GM] = g.gm
-        p[_k.P_RPLANET] = dyn.planet_radius
-        if dyn.atmosphere is not None:
-            p[_k.P_ATMO] = 1.0
-            p[_k.P_RHO0] = dyn.atmosphere.surface_density
-            p[_k.P_H] = dyn.atmosphere.scale_height
-            p[_k.P_EXO] = dyn.atmosphere.exosphere
         d = names.get("drag")
-        if d is not None:
-            if not hasattr(d, "cd"):
-                raise ValueError("fast path supports sphere drag only")
-            p[_k.P_DRAG] = 1.0
-            p[_k.P_CD] = d.cd
-            p[_k.P_AREA] = d.area
-        v = dyn.vehicle
-        p[_k.P_DRY] = v.dry_mass
-        if v.gyration_sq is not None:
-            p[_k.P_K1], p[_k.P_K2], p[_k.P_K3] = v.gyration_sq
-        else:
-            p[_k.P_FIXED_I] = 1.0
-            p[_k.P_K1], p[_k.P_K2], p[_k.P_K3] = v.inertia_diag
-        th = names.get("thrusters")
-        n = v.n_thrusters
-        self.force = np.zeros((n, 3))
-        self.torque = np.zeros((n, 3))
-        self.burn = np.zeros(n)
-        if th is not None:
-            p[_k.P_THRUST] = 1.0
-            self.force = np.ascontiguousarray(th._force, dtype=float)
-            self.torque = np.ascontiguousarray(th._torque, dtype=float)
-            self.burn = np.ascontiguousarray(th._burn, dtype=float)
-        p[_k.P_RENORM] = 1.0 if renormalise else 0.0
-        self.params = p
+        if d is not None and not hasattr(d, "cd"):
+            raise ValueError("fast path supports sphere drag only")
+        # The packing is the compiled Runge-Kutta methods' (one layout, lander_kernel.P_*).
+        model = CompiledModel(dyn)
+        self.dyn = dyn
+        self.params = model.params.copy()
+        self.params[_k.P_RENORM] = 1.0 if renormalise else 0.0
+        self.force, self.torque, self.burn = model.force, model.torque, model.burn
         self._parachute = names.get("parachute")
 
     def usable(self, stabiliser: bool = False) -> bool:

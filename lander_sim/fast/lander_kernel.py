@@ -31,9 +31,11 @@ except ImportError:  # pragma: no cover - exercised only where numba is absent
             return args[0]
         return lambda f: f
 
-# Layout of the ``params`` array.
+# Layout of the ``params`` array. Uniform gravity ``F_W = m g_W`` and a constant force ``F_W`` at
+# ``point_B`` (torque ``point_B x R F_W``: the seed-1 rotor) serve the compiled Runge-Kutta methods.
 P_GM, P_RPLANET, P_RHO0, P_H, P_EXO, P_CD, P_AREA, P_DRY, P_K1, P_K2, P_K3, P_FIXED_I, P_GRAV, P_ATMO, P_DRAG, P_THRUST, P_RENORM = range(17)
-N_PARAMS = 17
+P_UGRAV, P_G0, P_CFORCE, P_CF0, P_CP0 = 17, 18, 21, 22, 25
+N_PARAMS = 28
 
 
 @njit(cache=True)
@@ -52,6 +54,10 @@ def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: n
         fwx += k * x
         fwy += k * yy
         fwz += k * z
+    if params[P_UGRAV] != 0.0:
+        fwx += mass * params[P_G0]
+        fwy += mass * params[P_G0 + 1]
+        fwz += mass * params[P_G0 + 2]
     rho = 0.0
     if params[P_ATMO] != 0.0:
         alt = math.sqrt(x * x + yy * yy + z * z) - params[P_RPLANET]
@@ -88,6 +94,18 @@ def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: n
     r20 = 2.0 * (s * b + a * c)
     r21 = 2.0 * (b * c - s * a)
     r22 = s * s - a * a - b * b + c * c
+    if params[P_CFORCE] != 0.0:
+        cf0, cf1, cf2 = params[P_CF0], params[P_CF0 + 1], params[P_CF0 + 2]
+        fwx += cf0
+        fwy += cf1
+        fwz += cf2
+        g0 = r00 * cf0 + r01 * cf1 + r02 * cf2
+        g1 = r10 * cf0 + r11 * cf1 + r12 * cf2
+        g2 = r20 * cf0 + r21 * cf1 + r22 * cf2
+        p0, p1, p2 = params[P_CP0], params[P_CP0 + 1], params[P_CP0 + 2]
+        qx += p1 * g2 - p2 * g1
+        qy += p2 * g0 - p0 * g2
+        qz += p0 * g1 - p1 * g0
     out[0] = (fwx + (r00 * fbx + r10 * fby + r20 * fbz)) / mass
     out[1] = (fwy + (r01 * fbx + r11 * fby + r21 * fbz)) / mass
     out[2] = (fwz + (r02 * fbx + r12 * fby + r22 * fbz)) / mass
@@ -102,6 +120,61 @@ def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: n
 
 
 @njit(cache=True)
+def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est):  # pragma: no cover - compiled
+    """One velocity-Verlet step of ``dt`` [s] of ``y`` (14,) in place; ``a0``/``a1`` (6,) and ``est`` (14,) are scratch."""
+    h = 0.5 * dt
+    _accelerations(y, params, force, torque, throttles, wind, a0)
+    fuel_rate = 0.0
+    if params[P_THRUST] != 0.0 and y[13] > 0.0:
+        acc = 0.0
+        for i in range(throttles.shape[0]):
+            acc += throttles[i] * burn[i]
+        fuel_rate = -acc
+    w1, w2, w3 = y[10], y[11], y[12]
+    wh1 = w1 + h * a0[3]
+    wh2 = w2 + h * a0[4]
+    wh3 = w3 + h * a0[5]
+    s, a, b, c = y[6], y[7], y[8], y[9]
+    # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
+    ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
+    da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
+    db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
+    dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
+    s = s + ds * dt
+    a = a + da * dt
+    b = b + db * dt
+    c = c + dc * dt
+    if params[P_RENORM] != 0.0:
+        nq = math.sqrt(s * s + a * a + b * b + c * c)
+        s, a, b, c = s / nq, a / nq, b / nq, c / nq
+    y[6], y[7], y[8], y[9] = s, a, b, c
+    vh0 = y[3] + h * a0[0]
+    vh1 = y[4] + h * a0[1]
+    vh2 = y[5] + h * a0[2]
+    y[0] = y[0] + vh0 * dt
+    y[1] = y[1] + vh1 * dt
+    y[2] = y[2] + vh2 * dt
+    y[13] += fuel_rate * dt
+    if y[13] < 0.0:
+        y[13] = 0.0
+    for j in range(14):
+        est[j] = y[j]
+    est[10] = w1 + dt * a0[3]
+    est[11] = w2 + dt * a0[4]
+    est[12] = w3 + dt * a0[5]
+    est[3] = y[3] + dt * a0[0]
+    est[4] = y[4] + dt * a0[1]
+    est[5] = y[5] + dt * a0[2]
+    _accelerations(est, params, force, torque, throttles, wind, a1)
+    y[10] = wh1 + h * a1[3]
+    y[11] = wh2 + h * a1[4]
+    y[12] = wh3 + h * a1[5]
+    y[3] = vh0 + h * a1[0]
+    y[4] = vh1 + h * a1[1]
+    y[5] = vh2 + h * a1[2]
+
+
+@njit(cache=True)
 def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind, stop_radius):  # pragma: no cover - compiled
     """Advance ``y`` (14,) in place by up to ``n`` velocity-Verlet steps of ``dt`` [s].
 
@@ -112,7 +185,6 @@ def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind,
     a0 = np.empty(6)
     a1 = np.empty(6)
     est = np.empty(14)
-    h = 0.5 * dt
     burning = False
     for i in range(throttles.shape[0]):
         if throttles[i] != 0.0:
@@ -121,55 +193,7 @@ def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind,
     for k in range(n):
         for j in range(14):
             y_prev[j] = y[j]
-        _accelerations(y, params, force, torque, throttles, wind, a0)
-        fuel_rate = 0.0
-        if params[P_THRUST] != 0.0 and y[13] > 0.0:
-            acc = 0.0
-            for i in range(throttles.shape[0]):
-                acc += throttles[i] * burn[i]
-            fuel_rate = -acc
-        w1, w2, w3 = y[10], y[11], y[12]
-        wh1 = w1 + h * a0[3]
-        wh2 = w2 + h * a0[4]
-        wh3 = w3 + h * a0[5]
-        s, a, b, c = y[6], y[7], y[8], y[9]
-        # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
-        ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
-        da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
-        db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
-        dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
-        s = s + ds * dt
-        a = a + da * dt
-        b = b + db * dt
-        c = c + dc * dt
-        if params[P_RENORM] != 0.0:
-            nq = math.sqrt(s * s + a * a + b * b + c * c)
-            s, a, b, c = s / nq, a / nq, b / nq, c / nq
-        y[6], y[7], y[8], y[9] = s, a, b, c
-        vh0 = y[3] + h * a0[0]
-        vh1 = y[4] + h * a0[1]
-        vh2 = y[5] + h * a0[2]
-        y[0] = y[0] + vh0 * dt
-        y[1] = y[1] + vh1 * dt
-        y[2] = y[2] + vh2 * dt
-        y[13] += fuel_rate * dt
-        if y[13] < 0.0:
-            y[13] = 0.0
-        for j in range(14):
-            est[j] = y[j]
-        est[10] = w1 + dt * a0[3]
-        est[11] = w2 + dt * a0[4]
-        est[12] = w3 + dt * a0[5]
-        est[3] = y[3] + dt * a0[0]
-        est[4] = y[4] + dt * a0[1]
-        est[5] = y[5] + dt * a0[2]
-        _accelerations(est, params, force, torque, throttles, wind, a1)
-        y[10] = wh1 + h * a1[3]
-        y[11] = wh2 + h * a1[4]
-        y[12] = wh3 + h * a1[5]
-        y[3] = vh0 + h * a1[0]
-        y[4] = vh1 + h * a1[1]
-        y[5] = vh2 + h * a1[2]
+        verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est)
         if stop2 > 0.0 and y[0] * y[0] + y[1] * y[1] + y[2] * y[2] < stop2:
             return k + 1
         if burning and y[13] <= 0.0:

@@ -9,7 +9,13 @@ name                   order  method
 ``adaptive``           5      Dormand-Prince 5(4), ``rtol``/``atol`` bound the local error per
                               step or (``error_control="global"``) the global error of a call
 ``geometric``          2      DLM rotor splitting + exponential map (|q| = 1 exactly)
+``dop853``             8      Dormand-Prince 8(5,3) as scipy's ``solve_ivp``, local error control
 =====================  =====  ==========================================================
+
+RK4, ``adaptive``, ``geometric`` and ``dop853`` step a model that has a compiled form
+(:func:`lander_sim.fast.rk_kernels.compiled_model`: the standard lander models and the seed-1
+rigid bodies, quaternion attitude) in numba; option ``compiled=False`` keeps the numpy code (for
+``dop853``: scipy), the reference they are tested against.
 
 All advance translation and rotation together, in quaternion or (except ``geometric``)
 ZXZ Euler-angle mode (eq 5-7 of the dynamics reference).
@@ -21,6 +27,7 @@ from typing import Callable
 
 from lander_sim.integrators.adaptive import AdaptiveDormandPrince
 from lander_sim.integrators.base import Integrator, IntegratorError, check_dt
+from lander_sim.integrators.dop853 import DOP853
 from lander_sim.integrators.geometric import Geometric
 from lander_sim.integrators.rk4 import RK4
 from lander_sim.integrators.symplectic_euler import SymplecticEuler
@@ -33,6 +40,7 @@ REGISTRY: dict[str, Callable[..., Integrator]] = {
     "rk4": RK4,
     "adaptive": AdaptiveDormandPrince,
     "geometric": Geometric,
+    "dop853": DOP853,
 }
 
 

@@ -141,6 +141,10 @@ class AdaptiveDormandPrince:
     first_step: float | None = None
     observer: Callable[[float, np.ndarray, np.ndarray, float], None] | None = field(default=None, repr=False)
     error_control: ErrorControl = "local"
+    #: Without observer: step a model that has a compiled form with
+    #: :func:`lander_sim.fast.rk_kernels.dopri5_span` (same method, controller and, in global
+    #: mode, bisected mesh, in numba); False keeps the numpy code, the reference.
+    compiled: bool = True
     name: str = "adaptive"
     order: int = 5
     accepted: int = 0
@@ -252,6 +256,8 @@ class AdaptiveDormandPrince:
         If ``fine`` is given (equal to ``y`` on entry), it is advanced in parallel by two half
         steps per accepted step (the bisected mesh of the global mode, no error estimate of its own).
         """
+        if self.compiled and self.observer is None and self._integrate_compiled(dyn, t, y, dt, rtol, atol, fine):
+            return
         k, tmp, ynew, err, acc = self._k, self._tmp, self._ynew, self._err, self._acc
         t_end = t + dt
         derivative(dyn, t, y, k[0], acc)
@@ -296,6 +302,33 @@ class AdaptiveDormandPrince:
         else:
             raise FloatingPointError(f"adaptive integrator exceeded {_MAX_INTERNAL_STEPS} internal steps in one call")
         self._h = h
+
+    def _integrate_compiled(
+        self, dyn: Dynamics, t: float, y: np.ndarray, dt: float, rtol: float, atol: float, fine: np.ndarray | None
+    ) -> bool:
+        """:meth:`_integrate` by the compiled kernel if the model has a compiled form; False if not."""
+        from lander_sim.fast import HAVE_NUMBA
+        from lander_sim.fast.rk_kernels import compiled_model, dopri5_span, dopri5_tableau
+
+        cm = compiled_model(dyn) if HAVE_NUMBA else None
+        if cm is None:
+            return False
+        thr, wind = cm.inputs()
+        A, C, E = dopri5_tableau()
+        stats = np.array([0.0, 0.0, 0.0, self.last_error, self.max_error])
+        h = dopri5_span(y, t, dt, rtol, atol, 0.0 if self._h is None else self._h, cm.params, cm.force, cm.torque,
+                        cm.burn, thr, wind, cm.translation, A, C, E, stats,
+                        self._tmp if fine is None else fine, fine is not None)
+        self.accepted += int(stats[0])
+        self.rejected += int(stats[1])
+        dyn.evaluations += int(stats[2])  # type: ignore[attr-defined]
+        self.last_error, self.max_error = float(stats[3]), float(stats[4])
+        if h == -math.inf:
+            raise FloatingPointError(f"adaptive integrator exceeded {_MAX_INTERNAL_STEPS} internal steps in one call")
+        if h < 0.0:
+            raise FloatingPointError(f"adaptive step size underflow (h={-h:.3g} s)")
+        self._h = h
+        return True
 
     def _half_steps(self, dyn: Dynamics, t: float, yf: np.ndarray, h: float) -> None:
         """Two Dormand-Prince steps of ``h/2`` from ``(t, yf)`` in place; ``_kf[0]`` holds ``f(t, yf)`` (FSAL)."""

@@ -126,6 +126,9 @@ class Geometric:
     """
 
     renormalise: bool = False
+    #: Step a model that has a compiled form with :func:`lander_sim.fast.rk_kernels.geometric_steps`
+    #: (the same splitting in numba); False keeps this numpy code, the reference.
+    compiled: bool = True
     name: str = "geometric"
     order: int = 2
     _a0: np.ndarray = field(default_factory=lambda: np.zeros(6), repr=False)
@@ -140,6 +143,8 @@ class Geometric:
                 f"integrator 'geometric' needs attitude 'quaternion', the scene uses {dyn.attitude!r}; "
                 "for Euler angles choose one of: verlet, symplectic-euler, rk4, adaptive"
             )
+        if self.compiled and _fast_steps(dyn, y, dt, self.renormalise):
+            return
         a0, a1, est = self._a0, self._a1, self._est
         h = 0.5 * dt
         I0 = principal_inertia(dyn, y)
@@ -171,3 +176,17 @@ class Geometric:
         y[OMEGA_B] = w_drift + h * _torque_part(a1[3:6], est[OMEGA_B], I1)
         if dyn.translation:
             y[V_W] = v_half + h * a1[0:3]
+
+
+def _fast_steps(dyn: Dynamics, y: np.ndarray, dt: float, renormalise: bool) -> bool:
+    """One compiled step if the model has a compiled form (and numba is there); False otherwise."""
+    from lander_sim.fast import HAVE_NUMBA
+    from lander_sim.fast.rk_kernels import compiled_model, geometric_steps
+
+    cm = compiled_model(dyn) if HAVE_NUMBA else None
+    if cm is None:
+        return False
+    thr, wind = cm.inputs()
+    dyn.evaluations += geometric_steps(y, dt, 1, cm.params, cm.force, cm.torque, cm.burn, thr, wind, cm.translation,
+                                       renormalise)
+    return True

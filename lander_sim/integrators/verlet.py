@@ -23,10 +23,13 @@ class VelocityVerlet:
        ``v + a dt`` (velocity-dependent forces need one; the skeleton uses the same for omega);
     4. ``v(t+dt) = v(t+dt/2) + a(t+dt) dt/2``.
 
-    Two acceleration evaluations per step; second order.
+    Two acceleration evaluations per step; second order. With ``compiled`` (default) a free-flying
+    model with a compiled form is stepped by :func:`lander_sim.fast.lander_kernel.verlet_steps`
+    (the Simulation's fast path); ``compiled=False`` keeps this numpy code, the reference.
     """
 
     renormalise: bool = True
+    compiled: bool = True
     name: str = "verlet"
     order: int = 2
     _a0: np.ndarray = field(default_factory=lambda: np.zeros(6), repr=False)
@@ -36,6 +39,8 @@ class VelocityVerlet:
     def step(self, dyn: Dynamics, t: float, y: np.ndarray, dt: float) -> None:
         if type(dt) is not float or not dt > 0.0:
             dt = check_dt(dt)
+        if self.compiled and dyn.translation and _fast_step(dyn, y, dt, self.renormalise):
+            return
         a0, a1, est = self._a0, self._a1, self._est
         dyn.accelerations(t, y, a0)
         fuel_rate = dyn.fuel_rate(t, y)
@@ -64,3 +69,18 @@ class VelocityVerlet:
         y[OMEGA_B] = w_half + h * a1[3:6]
         if dyn.translation:
             y[V_W] = v_half + h * a1[0:3]
+
+
+def _fast_step(dyn: Dynamics, y: np.ndarray, dt: float, renormalise: bool) -> bool:
+    """One compiled Verlet step if the model has a compiled form (and numba is there); False otherwise."""
+    from lander_sim.fast import HAVE_NUMBA
+    from lander_sim.fast.lander_kernel import verlet_steps
+    from lander_sim.fast.rk_kernels import compiled_model
+
+    cm = compiled_model(dyn) if HAVE_NUMBA else None
+    if cm is None:
+        return False
+    thr, wind = cm.inputs()
+    taken = verlet_steps(y, np.empty(14), 1, dt, cm.verlet_params(renormalise), cm.force, cm.torque, cm.burn, thr, wind, 0.0)
+    dyn.evaluations += 2 * taken
+    return True

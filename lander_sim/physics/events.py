@@ -10,12 +10,13 @@ class Phase(enum.Enum):
     """Flight phase: the state is frozen once LANDED or CRASHED."""
 
     FLYING = "flying"
-    LANDED = "landed"
+    LANDED = "landed"  # safe or hard touchdown (the event says which)
     CRASHED = "crashed"
 
 
 class EventKind(str, enum.Enum):
     LANDED = "landed"
+    HARD_LANDING = "hard_landing"  # over the scene's safe touchdown limits, under its crash limits
     CRASHED = "crashed"
     GIMBAL_LOCK = "gimbal_lock"  # a warning: entering |sin theta| < threshold (Euler mode)
     FUEL_EMPTY = "fuel_empty"

@@ -88,6 +88,18 @@ def _positive_int(v: Any) -> str | None:
     return None if isinstance(v, int) and not isinstance(v, bool) and v > 0 else "must be an integer > 0"
 
 
+def _end_on(v: Any) -> str | None:
+    from lander_sim.ros.flight_span import parse_end_on
+
+    if not isinstance(v, str):
+        return "must be a string"
+    try:
+        parse_end_on(v)
+    except ValueError as exc:
+        return f"must list phases separated by commas: {exc}"
+    return None
+
+
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
@@ -113,6 +125,18 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "pause_at", -1.0, "Pause at the first control instant at or after this sim time [s] (once); < 0: never.",
         _finite,
+    ),
+    ParamSpec(
+        "end_time", -1.0, "End the flight at the first control instant at or after this sim time [s]: publish "
+        "its state and FLIGHT_ENDED, then advance no further until a reset; < 0: no time limit.", _finite,
+    ),
+    ParamSpec(
+        "end_on", "", "Touchdown phases that end the flight the same way, comma-separated: landed, crashed; "
+        "empty: none.", _end_on,
+    ),
+    ParamSpec(
+        "idle_diagnostics", True, "Publish /diagnostics while started paused, before the first reset, resume or "
+        "step; false: a flight's diagnostics start with it (lander fly: the bag holds only the flight's).", _bool,
     ),
     ParamSpec("start_paused", False, "Start paused (resume, step or run_until to advance).", _bool, True),
     ParamSpec("world_frame", "mars", "Planet-fixed frame id (the core's world frame).", _frame_id),

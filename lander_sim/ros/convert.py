@@ -110,6 +110,7 @@ def vector3_to_array(v) -> np.ndarray:
 #: Core event kind (``lander_sim.physics.events.EventKind`` value) -> ``FlightEvent`` constant name.
 FLIGHT_EVENT_NAMES = {
     "landed": "LANDED",
+    "hard_landing": "HARD_LANDING",
     "crashed": "CRASHED",
     "gimbal_lock": "GIMBAL_LOCK",
     "fuel_empty": "FUEL_OUT",

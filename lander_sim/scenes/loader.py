@@ -16,6 +16,7 @@ import yaml
 from lander_sim.integrators import REGISTRY as INTEGRATORS
 from lander_sim.physics import constants as c
 from lander_sim.physics import rotation
+from lander_sim.physics.models.ground import TouchdownLimits
 from lander_sim.physics.state import pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
@@ -87,7 +88,10 @@ class ConstantForceConfig:
 
 @dataclass(frozen=True)
 class GroundConfig:
+    """``safe_speed`` [m/s]; ``limits``: the scene's ``touchdown`` section (None: from ``safe_speed``)."""
+
     safe_speed: float = 1.0
+    limits: TouchdownLimits | None = None
 
 
 @dataclass(frozen=True)
@@ -210,7 +214,7 @@ class _Reader:
 _TOP = {
     "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "integrator_options", "dt",
     "fixed_pivot",
-    "models", "stabiliser", "gimbal_threshold", "wind_W", "wind", "autopilot", "end",
+    "models", "stabiliser", "gimbal_threshold", "wind_W", "wind", "autopilot", "end", "touchdown",
 }
 _MODELS = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "constant_force", "ground"}
 
@@ -366,6 +370,36 @@ def _models(rd: _Reader, node: Any) -> Models:
     return models
 
 
+_TOUCHDOWN_KEYS = ("descent_rate", "ground_speed", "tilt_deg")
+
+
+def _touchdown(rd: _Reader, node: Any, models: Models) -> Models:
+    """``touchdown: {safe: {descent_rate, ground_speed, tilt_deg}, crash: {...}}`` (m/s, m/s, degrees).
+
+    Missing safe limits default to ``models.ground.safe_speed`` (the original's 1 m/s) and no
+    tilt limit (180 deg); missing crash limits to the safe ones. Each crash limit >= its safe one.
+    """
+    if node is None:
+        return models
+    if models.ground is None:
+        raise rd.fail("touchdown", "needs the ground: expected models.ground to be switched on")
+    t = rd.mapping(node, "touchdown", {"safe", "crash"})
+    v = models.ground.safe_speed
+    safe = dict(zip(_TOUCHDOWN_KEYS, (v, v, 180.0)))
+    for k, x in rd.mapping(t.get("safe"), "touchdown.safe", set(_TOUCHDOWN_KEYS)).items():
+        safe[k] = rd.number(x, f"touchdown.safe.{k}", 0.0, 180.0 if k == "tilt_deg" else None, strict_lo=True)
+    crash = dict(safe)
+    for k, x in rd.mapping(t.get("crash"), "touchdown.crash", set(_TOUCHDOWN_KEYS)).items():
+        crash[k] = rd.number(x, f"touchdown.crash.{k}", safe[k], 180.0 if k == "tilt_deg" else None)
+    limits = TouchdownLimits(
+        safe["descent_rate"], safe["ground_speed"], math.radians(safe["tilt_deg"]),
+        crash["descent_rate"], crash["ground_speed"], math.radians(crash["tilt_deg"]),
+    )
+    from dataclasses import replace
+
+    return replace(models, ground=replace(models.ground, limits=limits))
+
+
 def _initial(rd: _Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
     i = rd.mapping(node, "initial", {"position_W", "velocity_W", "attitude", "omega_B", "fuel"})
     r = rd.vector(i.get("position_W", [0, 0, 0]), "initial.position_W")
@@ -413,7 +447,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     integ = rd.choice(top.get("integrator", "verlet"), "integrator", tuple(sorted(INTEGRATORS)))
     integ_options = _integrator_options(rd, integ, top.get("integrator_options"))
     vehicle, failures = _vehicle(rd, top["vehicle"])
-    models = _models(rd, top.get("models"))
+    models = _touchdown(rd, top.get("touchdown"), _models(rd, top.get("models")))
     if models.thrusters and vehicle.n_thrusters == 0:
         raise rd.fail("models.thrusters", "the vehicle has no thrusters: use vehicle.preset: lander")
     autopilot = top.get("autopilot")

@@ -35,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 bag = read_bag(path)
                 flights.append(Flight.from_bag(bag, name=_name(path, [f.name for f in flights])))
+                _print_span(path, bag)
             except BagError as exc:
                 print(f"lander analyse: {exc}", file=sys.stderr)
                 return 2
@@ -51,3 +52,18 @@ def run(args: argparse.Namespace) -> int:
 def _name(path: Path, taken: list[str]) -> str:
     name = path.name if path.name else str(path)
     return name if name not in taken else f"{name}#{len(taken) + 1}"
+
+
+def _print_span(path: Path, bag) -> None:
+    """Each bag's span on stderr (stdout stays the table or JSON); a bag that is not one whole
+    flight is flagged (lander_tools.bagspan)."""
+    import sys
+
+    from lander_tools.bagspan import bag_span
+
+    if "/lander/state" not in bag.topics:
+        return
+    s = bag.series("/lander/state")
+    span = bag_span(s["t"], s["sequence"])
+    flag = "warning: " if span.problems() else ""
+    print(f"lander analyse: {flag}{path}: states {span.describe()}", file=sys.stderr)

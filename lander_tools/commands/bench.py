@@ -1,4 +1,4 @@
-"""`lander bench NAME`: run one of the benchmarks in bench/ (integrators, extremes, models, speed).
+"""`lander bench NAME`: run one of the benchmarks in bench/ (integrators, extremes, models, speed, closed_loop, ...).
 
 Each benchmark is ``bench/NAME.py`` with ``main(argv) -> int``; this command finds the bench
 directory (the source checkout next to this package, or ``$LANDER_BENCH_DIR``), loads the file and
@@ -19,6 +19,7 @@ BENCHMARKS = {
     "speed": "raw Verlet step speed: compiled kernel vs numpy path vs naive",
     "node_rtf": "real-time factor of the sim node at 1 kHz physics, 50 Hz publishing (ROS)",
     "full_stack": "sim + autopilot + recorder flying scenario 7: RTF, latency, CPU, lost messages (ROS)",
+    "closed_loop": "closed loop in Python vs compiled, and the per-flight vs batched sweep paths",
 }
 
 

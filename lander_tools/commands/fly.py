@@ -1,8 +1,10 @@
 """``lander fly SCENE``: launch simulator + autopilot on this machine, fly, optionally record.
 
 ``SCENE`` may also be a scripted flight (``flights/*.yaml``, see docs/flying.md), which
-brings its own controller, timeline and end condition. Exit status: 0 landed or time
-limit, 1 crashed, 2 error, 130 interrupted (see :mod:`lander_tools.launcher`).
+brings its own controller, timeline and end condition. Scene, controller and flight names and
+the ``--params`` file are checked before anything starts (one error line, the closest name
+offered). Exit status: 0 landed or time limit, 1 crashed, 2 error, 3 the bag misses messages,
+130 interrupted (see :mod:`lander_tools.launcher`).
 Heavy imports (rclpy) happen in :func:`run`.
 """
 
@@ -22,7 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", metavar="X", type=float, default=None,
                         help="simulated seconds per wall-clock second (default 1.0; 0 = as fast as possible)")
     parser.add_argument("--params", metavar="FILE", type=Path,
-                        help="ROS parameters YAML for the nodes (sections lander_sim / lander_autopilot)")
+                        help="ROS parameters YAML for the nodes: sections lander_sim (the simulator), autopilot "
+                             "(or lander_autopilot) and /** (both), each holding ros__parameters; an unknown "
+                             "section or key is an error")
     parser.add_argument("--compose", action="store_true", help="run sim and autopilot in one process (faster)")
     parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                         help="sim waits for the autopilot's answer to every state (default: on with an autopilot)")
@@ -32,11 +36,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from lander_tools.launcher import EXIT_ERROR, LaunchError, FlightPlan, fly, summary
+    from lander_tools.launcher import (
+        EXIT_ERROR,
+        FlightPlan,
+        LaunchError,
+        check_plan,
+        fly,
+        summary,
+    )
     from lander_tools.progress import Progress
-    from lander_tools.scripted import ScriptError, is_script, load_script
+    from lander_tools.scripted import (
+        ScriptError,
+        check_flight_path,
+        is_script,
+        load_script,
+    )
 
     try:
+        check_flight_path(args.scene)
         if is_script(args.scene):
             plan = load_script(args.scene).plan(record=args.record, storage=args.storage)
             if args.controller is not None:
@@ -58,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
         if args.lockstep is not None:
             plan.lockstep = args.lockstep
         plan.__post_init__()
+        check_plan(plan)  # every name and file, before anything starts
     except (LaunchError, ScriptError) as exc:
         print(f"lander fly: {exc}", file=sys.stderr)
         return EXIT_ERROR

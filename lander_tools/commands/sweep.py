@@ -12,13 +12,17 @@ Examples::
     lander sweep sweeps/compare-combined-lqr.yaml             # two controllers on the same cases
 
 Writes ``flights.csv``, ``flights.json`` (and ``flights.parquet`` with pyarrow), ``summary.json``,
-``summary.txt`` and PNG plots into ``--out`` (default ``sweep-out/<spec name>``).
+``summary.txt`` and PNG plots into ``--out`` (default ``out/sweep/<spec name>`` in the current
+folder: ``out/`` is git-ignored, so a sweep run in the checkout adds nothing to it).
 Heavy imports happen in :func:`run` so ``lander --help`` stays fast.
 """
 from __future__ import annotations
 
 import argparse
 from typing import Any
+
+#: Where a sweep writes without ``--out`` (relative to the working folder; ``/out/`` is in .gitignore).
+DEFAULT_OUT = "out/sweep"
 
 EXIT_USAGE = 2
 EXIT_NOT_AVAILABLE = 3
@@ -34,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
         help="run on Dask distributed: a LocalCluster, or the scheduler at ADDRESS (tcp://host:8786)",
     )
-    parser.add_argument("--out", default=None, metavar="DIR", help="output folder (default sweep-out/<spec name>)")
+    parser.add_argument("--out", default=None, metavar="DIR", help=f"output folder (default {DEFAULT_OUT}/<spec name>, in the current folder)")
     parser.add_argument("--json", action="store_true", help="print the summary (or the replayed metrics) as JSON")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -114,20 +118,24 @@ def run(args: argparse.Namespace) -> int:
     text = summary.format_summary(sums, comps)
     speed = (
         f"{len(rows)} flights in {result.wall_time:.1f} s on {result.workers} {result.engine} worker(s): "
-        f"{result.flights_per_second:.2f} flights/s (core-only, no ROS)"
+        f"{result.flights_per_second:.2f} flights/s (core-only, no ROS; {result.path_note} path)"
     )
     blob: dict[str, Any] = {
         "spec": spec.source, "name": spec.name, "seed": spec.seed, "flights": spec.flights,
         "engine": result.engine, "workers": result.workers, "wall_time_s": result.wall_time,
-        "flights_per_second": result.flights_per_second, **summary.to_jsonable(sums, comps),
+        "flights_per_second": result.flights_per_second, "path": result.path, "path_reason": result.path_reason,
+        **summary.to_jsonable(sums, comps),
     }
-    out = Path(args.out) if args.out else Path("sweep-out") / spec.name
+    out = Path(args.out) if args.out else Path(DEFAULT_OUT) / spec.name
     check = None
     if args.through_ros:
         try:
             from lander_tools.sweep.ros_path import through_ros
 
-            check = through_ros(spec, args.through_ros, out / "ros", core_rows=rows, speed=args.ros_speed)
+            # The nodes fly the per-flight path's equations bit for bit; the batched core agrees with it
+            # to round-off only, so compare with per-flight rows (through_ros flies them) in that case.
+            core = rows if result.path != "batched" else None
+            check = through_ros(spec, args.through_ros, out / "ros", core_rows=core, speed=args.ros_speed)
         except ImportError as exc:
             return _fail(f"--through-ros needs the ROS environment (run it with ./dev sweep ...): {exc}", EXIT_NOT_AVAILABLE)
         blob["through_ros"] = {**check.as_dict(), "core_flights_per_second": result.flights_per_second,

@@ -137,6 +137,7 @@ def fly_case(
     demands, alts, thr_log = [], [], []
     sat_steps = 0
     touchdown_speed = math.nan
+    touchdown: dict[str, Any] = {}
     terminal = "ok"
     for k in range(n_ctrl + 1):
         st = sim.state()
@@ -157,6 +158,7 @@ def fly_case(
         if k == n_ctrl:
             break
         out = ctrl.update(t, st, demand)
+        _act_on_requests(sim, out)
         sat_steps += bool(out.saturated)
         sim.set_throttles(out.throttles)
         v_before = st.v_W
@@ -166,13 +168,13 @@ def fly_case(
             alts.append(h)
             thr_log.append(sim.throttles)  # as applied over the period: a failed thruster shows 0
         if _phase_name(sim) != "FLYING":
-            touchdown_speed = _touchdown_speed(sim, v_before)
+            touchdown_speed, touchdown = _touchdown_speed(sim, v_before)
 
     fuel_end = float(sim.state().fuel) if terminal != "diverged" else math.nan
     samples = Samples(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel0, fuel_end=fuel_end, saturated_updates=sat_steps, period=period,
-        touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change,
+        touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change, touchdown=touchdown,
     )
     row = make_row(spec, controller_index, index, case, samples)
     traj = None
@@ -200,15 +202,34 @@ def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samp
     }
 
 
-def _touchdown_speed(sim: Any, v_before: np.ndarray) -> float:
+def _touchdown_speed(sim: Any, v_before: np.ndarray) -> tuple[float, dict[str, Any]]:
     """Impact speed [m/s] ``sqrt(descent_rate^2 + ground_speed^2)`` from the simulation's
-    landed/crashed event (interpolated to the impact instant); if absent, the speed at the start
-    of the control period in which contact happened."""
+    landed/hard-landing/crashed event (interpolated to the impact instant), with the event's
+    touchdown figures and classification; if absent, the speed at the start of the control period
+    in which contact happened and no figures."""
+    classes = {"landed": "safe", "hard_landing": "hard", "crashed": "crash"}
     for ev in sim.drain_events():
         vals = getattr(ev, "values", {}) or {}
         if "descent_rate" in vals and "ground_speed" in vals:
-            return math.hypot(float(vals["descent_rate"]), float(vals["ground_speed"]))
-    return float(np.linalg.norm(v_before))
+            td = {k: float(vals[k]) for k in ("descent_rate", "ground_speed", "tilt_deg", "fuel_left") if k in vals}
+            td["classification"] = classes.get(getattr(ev.kind, "value", str(ev.kind)), "crash")
+            return math.hypot(float(vals["descent_rate"]), float(vals["ground_speed"])), td
+    return float(np.linalg.norm(v_before)), {}
+
+
+def _act_on_requests(sim: Any, out: Any) -> None:
+    """Do what the autopilot node does with a law's requests (``ControlOutput.requests``): deploy
+    the parachute (refused quietly if the scene has none: the node's service call fails the same
+    way); a ``landing_unreachable`` report changes nothing in the flight."""
+    from lander_autopilot.controllers.base import REQUEST_DEPLOY_PARACHUTE
+    from lander_sim.errors import InputError
+
+    for req in getattr(out, "requests", ()):
+        if req.kind == REQUEST_DEPLOY_PARACHUTE:
+            try:
+                sim.deploy_parachute()
+            except InputError:
+                pass
 
 
 def error_row(spec: SweepSpec, controller_index: int, index: int, exc: BaseException) -> dict[str, Any]:

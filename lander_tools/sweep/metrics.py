@@ -44,11 +44,19 @@ class Samples:
     touchdown_speed: float  # [m/s], NaN without touchdown
     terminal: str
     t_change: float  # [s] time of the demand step (0 without one)
+    #: The simulator's touchdown figures: descent_rate, ground_speed [m/s], tilt_deg [deg], and
+    #: classification (safe/hard/crash, from the event kind); empty without touchdown.
+    touchdown: dict[str, Any] | None = None
 
 
 def altitude_and_tilt(r_W: np.ndarray, q: np.ndarray) -> tuple[float, float]:
-    """Altitude above the Mars radius [m] and tilt of body z from the local vertical [rad]."""
+    """Altitude above the Mars radius [m] and tilt of body z from the local vertical [rad].
+
+    Both NaN at the planet's centre (``r_W = 0``): a fixed pivot (the seed-1 rotor scenes) has no
+    local vertical and no altitude, so neither figure applies."""
     rn = math.sqrt(float(r_W @ r_W))
+    if rn == 0.0:
+        return math.nan, math.nan
     up = rotation.body_to_world(q, _EZ_B)
     return rn - MARS_RADIUS, math.acos(max(-1.0, min(1.0, float(up @ r_W) / rn)))
 
@@ -68,6 +76,10 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         elif not hover <= end.max_hover_error:
             outcome = "off-target"
     success = outcome == "ok" or (outcome == "landed" and end.allow_touchdown)
+    td = s.touchdown or {}
+    td_rate, td_speed, td_tilt = (float(td.get(k, math.nan)) for k in ("descent_rate", "ground_speed", "tilt_deg"))
+    if getattr(end, "land", False):
+        outcome, success = _landing_outcome(s.terminal, td, td_rate, td_speed, td_tilt, end)
     metrics = {
         "touchdown_speed": s.touchdown_speed,
         "hover_error": hover,
@@ -78,12 +90,31 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "max_tilt": max_tilt,
         "max_body_rate": float(np.max(s.body_rate)) if len(s.body_rate) else math.nan,
         "flight_time": flown,
+        "touchdown_descent_rate": td_rate,
+        "touchdown_ground_speed": td_speed,
+        "touchdown_tilt": td_tilt,
     }
     return outcome, success, metrics
 
 
+def _landing_outcome(terminal: str, td: dict[str, Any], rate: float, speed: float, tilt_deg: float, end: Any) -> tuple[str, bool]:
+    """Landing sweep: ``landed`` (safe and inside the sweep's limits), ``over-limits`` (safe for the
+    scene, over the sweep's limits), ``hard-landing``, ``crashed``, ``no-touchdown`` or ``diverged``."""
+    if terminal in ("ok", "diverged"):
+        return ("no-touchdown" if terminal == "ok" else terminal), False
+    cls = td.get("classification", "crash" if terminal == "crashed" else "safe")
+    if cls != "safe":
+        return ("hard-landing" if cls == "hard" else "crashed"), False
+    inside = (rate < end.max_touchdown_descent_rate and speed < end.max_touchdown_ground_speed
+              and math.radians(tilt_deg) < end.max_touchdown_tilt)
+    return ("landed" if inside else "over-limits"), inside
+
+
 def settling_time(t: np.ndarray, e: np.ndarray, t_change: float, band: float) -> float:
-    """Time from ``t_change`` until ``|e|`` stays within ``band`` to the end; NaN if it never does."""
+    """Time from ``t_change`` until ``|e|`` stays within ``band`` to the end; NaN if it never does.
+
+    The one definition of settling time: sweeps and :func:`lander_tools.analysis.metrics` use it.
+    """
     after = t >= t_change
     if not np.any(after):
         return math.nan

@@ -89,6 +89,8 @@ def row_from_bag(spec: SweepSpec, controller_index: int, index: int, bag_path: P
     LANDED/CRASHED event's ``hypot(descent_rate, ground_speed)``.
     """
     from lander_tools.analysis import EV_CRASHED, EV_LANDED, Flight
+
+    EV_HARD_LANDING = 9  # lander_interfaces/msg/FlightEvent.msg HARD_LANDING
     from lander_tools.bagio import read_bag
 
     scene0 = nominal_scene(spec)
@@ -139,14 +141,19 @@ def row_from_bag(spec: SweepSpec, controller_index: int, index: int, bag_path: P
             by_k[0] = bool(_controller(spec, controller_index, scene0.vehicle).update(0.0, st, Demand(altitude=before)).saturated)
         sat = sum(1 for k, s in by_k.items() if s and k * period < t_last - 1e-9)
     touchdown = math.nan
+    figures: dict[str, Any] = {}
+    classes = {EV_LANDED: "safe", EV_HARD_LANDING: "hard", EV_CRASHED: "crash"}
     for t_ev, kind, _detail, values in f.events:
         # Events after the last state kept come from the sim running on while the nodes stop.
-        if kind in (EV_LANDED, EV_CRASHED) and len(values) >= 3 and t_ev <= t_last + 1e-9:
+        if kind in classes and len(values) >= 3 and t_ev <= t_last + 1e-9:
             touchdown = math.hypot(values[1], values[2])
+            # FlightEvent values: t_impact, descent_rate, ground_speed, tilt_deg, fuel_left.
+            figures = dict(zip(("descent_rate", "ground_speed", "tilt_deg", "fuel_left"), (float(v) for v in values[1:])))
+            figures["classification"] = classes[kind]
     samples = Samples(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel[0], fuel_end=fuel[-1], saturated_updates=sat, period=period, touchdown_speed=touchdown,
-        terminal=terminal, t_change=t_change,
+        terminal=terminal, t_change=t_change, touchdown=figures,
     )
     return make_row(spec, controller_index, index, case, samples)
 

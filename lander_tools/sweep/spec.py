@@ -134,6 +134,13 @@ class EndCondition:
         ... a tilt from the local vertical never above this [rad] ...
     allow_touchdown : bool
         ... and no touchdown unless this is true.
+    land : bool
+        A landing sweep: success is instead a touchdown the scene classifies ``safe`` with the
+        descent rate, ground speed and tilt below the three ``max_touchdown_*`` limits.
+    max_touchdown_descent_rate, max_touchdown_ground_speed : float
+        [m/s] (landing sweeps).
+    max_touchdown_tilt : float
+        [rad] (landing sweeps).
     """
 
     duration: float = 60.0
@@ -144,6 +151,10 @@ class EndCondition:
     max_hover_error: float = 2.0
     max_tilt: float = 0.5
     allow_touchdown: bool = False
+    land: bool = False
+    max_touchdown_descent_rate: float = 1.0
+    max_touchdown_ground_speed: float = 1.0
+    max_touchdown_tilt: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -166,6 +177,9 @@ METRICS: dict[str, str] = {
     "max_tilt": "largest angle between body z and the local vertical [rad]",
     "max_body_rate": "largest |omega_B| [rad/s]",
     "flight_time": "simulated time flown [s]",
+    "touchdown_descent_rate": "descent rate at touchdown [m/s] (NaN when no touchdown)",
+    "touchdown_ground_speed": "ground speed at touchdown [m/s] (NaN when no touchdown)",
+    "touchdown_tilt": "tilt of body z from the local vertical at touchdown [deg] (NaN when no touchdown)",
 }
 
 
@@ -347,7 +361,7 @@ def _end(ctx: _Ctx, value: Any) -> EndCondition:
     _check_keys(ctx, "end", data, names)
     kw: dict[str, Any] = {}
     for n, v in data.items():
-        if n == "allow_touchdown":
+        if n in ("allow_touchdown", "land"):
             if not isinstance(v, bool):
                 raise ctx.fail(f"end.{n}", f"expected true or false, got {v!r}")
             kw[n] = v

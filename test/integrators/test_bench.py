@@ -25,3 +25,17 @@ def test_models_benchmark_quick_writes_positive_rates(tmp_path: Path) -> None:
     data = json.loads(out.read_text())
     assert data["scenes"] and all(r["steps_per_s"] > 0 for r in data["scenes"])
     assert len(data["one_by_one"]) == 6 and all(r["steps_per_s"] > 0 for r in data["one_by_one"])
+
+
+@pytest.mark.slow
+def test_closed_loop_benchmark_quick_writes_both_loop_and_sweep_rates(tmp_path: Path) -> None:
+    # Behaviour, not timings: every rate is measured in the run and positive, the two loops fly
+    # the same trajectory (the 1e-9 of test/control/test_compiled_loop.py) and the two sweep paths
+    # print the same summary.
+    out = tmp_path / "closed_loop.json"
+    assert bench.run(argparse.Namespace(name="closed_loop", json=str(out), out=None, quick=True)) == 0
+    data = json.loads(out.read_text())
+    for key in ("python_loops_per_s", "compiled_loops_per_s", "per_flight_flights_per_s", "batched_flights_per_s"):
+        assert data[key] > 0, key
+    assert max(data["trajectory_rel_diff"].values()) <= 1e-9
+    assert data["summary_equal"]

@@ -10,13 +10,13 @@ from .problems import KeplerTop, state
 
 
 def test_registry_has_every_method_of_the_issue() -> None:
-    assert set(REGISTRY) == {"verlet", "symplectic-euler", "rk4", "adaptive", "geometric"}
+    assert set(REGISTRY) == {"verlet", "symplectic-euler", "rk4", "adaptive", "geometric", "dop853"}
     for name in REGISTRY:
         assert make(name).name == name
 
 
 def test_unknown_name_lists_the_choices() -> None:
-    with pytest.raises(ValueError, match=r"unknown integrator 'euler'; choose one of: adaptive, geometric, rk4, symplectic-euler, verlet"):
+    with pytest.raises(ValueError, match=r"unknown integrator 'euler'; choose one of: adaptive, dop853, geometric, rk4, symplectic-euler, verlet"):
         make("euler")
 
 

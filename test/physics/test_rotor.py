@@ -4,15 +4,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from lander_sim.physics.events import EventKind  # noqa: E402
-from lander_sim.scenes import load_scene  # noqa: E402
-from lander_sim.simulation import Simulation  # noqa: E402
+from lander_sim.physics.events import EventKind
+from lander_sim.scenes import load_scene
+from lander_sim.simulation import Simulation
+from lander_tools.analysis import ztrack_figure
+from lander_tools.plotstyle import colour, save
 
 DOC_IMAGE = Path(__file__).resolve().parents[2] / "docs" / "img" / "rotor-z-track.png"
 
@@ -30,15 +28,11 @@ def z_track(scene: str, dt: float | None = None) -> np.ndarray:
 
 
 def plot_z_track(track: np.ndarray, path: Path) -> None:
-    """The seed 1 Figure 1 plot: 3-D track of the rotor's z axis."""
-    fig = plt.figure(figsize=(5, 5))
-    ax = fig.add_subplot(projection="3d")
-    ax.plot(track[::2, 0], track[::2, 1], track[::2, 2])
-    ax.set_xlim(-1, 1), ax.set_ylim(-1, 1), ax.set_zlim(-1, 1)
-    ax.set_xlabel("x"), ax.set_ylabel("y"), ax.set_zlabel("z")
-    ax.set_title("Gimballed rotor: z axis (precession and nutation)")
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    """The seed 1 Figure 1 plot: 3-D track of the rotor's z axis (``lander analyse``'s z-track figure;
+    ``DOC_IMAGE`` is this figure of ``rotor-quaternion``)."""
+    fig = ztrack_figure([("rotor-quaternion", track, colour(0))])
+    fig.axes[0].set_title("Gimballed rotor: body z axis in world coordinates\n(precession and nutation)")
+    save(fig, path, dpi=90)
 
 
 def test_rotor_reproduces_figure_1_cuspidal_precession_and_nutation(tmp_path):

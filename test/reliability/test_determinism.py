@@ -9,10 +9,12 @@ operations. Wall time enters nowhere, so any difference at all, even one ulp, is
 """
 from __future__ import annotations
 
+import re
 import subprocess
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from .stack import START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
 
@@ -140,3 +142,91 @@ def test_composed_and_multi_process_fly_the_same_flight(stack: Stack, watch: Wat
         n = min(len(multi[topic]), len(composed[topic]))
         assert n >= FLIGHT_S / 0.1
         assert multi[topic][:n] == composed[topic][:n], topic
+
+
+# --- `lander fly` twice: every recorded topic, sim alone and lockstep ---------------------------
+
+#: Recorded topics whose content is paced by the wall clock by design, so their number differs
+#: between runs: /diagnostics (health at diagnostics_rate Hz of wall time, with wall-clock figures:
+#: real-time factor, step time) and /lander/markers (at most marker_rate Hz of wall time, for RViz).
+#: Their payloads are checked for what is deterministic in them: each marker's trajectory is a
+#: prefix of the sim's positions, which the state payloads (compared exactly) already fix.
+WALL_PACED = ("/diagnostics", "/lander/markers")
+FLY_S = 5.0
+
+
+def _payloads(bag: Path) -> dict[str, list[bytes]]:
+    """Every message's serialised payload per topic, read with the independent `mcap` reader."""
+    from mcap.reader import make_reader
+
+    out: dict[str, list[bytes]] = {}
+    (mcap,) = bag.glob("*.mcap")
+    with open(mcap, "rb") as fh:
+        for _schema, channel, message in make_reader(fh).iter_messages(log_time_order=False):
+            out.setdefault(channel.topic, []).append(bytes(message.data))
+    return out
+
+
+def _mask_wall_paced_counts(payload: bytes) -> bytes:
+    """A FlightEvent payload, with FLIGHT_ENDED's counts of WALL_PACED topics set to -1 (re-serialised);
+    any other event unchanged."""
+    from lander_sim.ros.flight_span import COUNTED_TOPICS
+    from lander_tools.bagio import lander_typestore
+
+    ts = lander_typestore()
+    name = "lander_interfaces/msg/FlightEvent"
+    msg = ts.deserialize_cdr(payload, name)
+    if msg.kind != 12:  # FLIGHT_ENDED
+        return payload
+    values = msg.values.copy()
+    for topic in WALL_PACED:
+        values[2 + COUNTED_TOPICS.index(topic)] = -1.0
+    msg.values = values
+    for topic in WALL_PACED:  # the detail says the same counts in words
+        msg.detail = re.sub(rf"{re.escape(topic)} \d+", f"{topic} -1", msg.detail)
+    return bytes(ts.serialize_cdr(msg, name))
+
+
+def _start_up_report(payload: bytes) -> bool:
+    """An autopilot status sent before its first state (its watchdog, after state_timeout wall
+    seconds: whether one comes before the flight starts depends on the wall clock)."""
+    from lander_tools.bagio import lander_typestore
+
+    msg = lander_typestore().deserialize_cdr(payload, "lander_interfaces/msg/AutopilotStatus")
+    return msg.steps == 0 and not msg.state_ok
+
+
+def _fly_twice(tmp_path: Path, controller: str | None) -> tuple[dict[str, list[bytes]], dict[str, list[bytes]]]:
+    import os
+
+    from lander_tools.launcher import FlightPlan, fly, summary
+
+    runs = []
+    for k in range(2):
+        plan = FlightPlan(scene=SCENE, controller=controller, duration=FLY_S, speed=0.0, record=tmp_path / f"run{k}",
+                          sim_params={"seed": SEED})
+        with open(os.devnull, "w") as devnull:
+            result = fly(plan, out=devnull)
+        assert result.exit_code == 0 and result.bag_check.startswith("complete"), summary(result)
+        runs.append(_payloads(tmp_path / f"run{k}"))
+    return runs[0], runs[1]
+
+
+@pytest.mark.parametrize("mode", [pytest.param("alone", marks=pytest.mark.slow), "lockstep"])
+def test_lander_fly_twice_gives_identical_payloads_on_every_recorded_topic(mode: str, tmp_path: Path) -> None:
+    """Sim alone (free running at speed 0; with --runslow) and with the autopilot in lockstep: the
+    same scene and seed, flown twice by `lander fly`, record byte-identical payloads on every topic
+    whose content is a function of sim time (all but WALL_PACED), message for message; the
+    autopilot's start-up reports (no state yet: wall-clock driven, before the flight) are left out."""
+    controller = "none" if mode == "alone" else None
+    a, b = _fly_twice(tmp_path / mode, controller)
+    assert set(a) == set(b)
+    for run in (a, b):  # FLIGHT_ENDED also counts the wall-paced topics: those two counts masked
+        run["/lander/events"] = [_mask_wall_paced_counts(x) for x in run["/lander/events"]]
+        if "/autopilot/status" in run:
+            run["/autopilot/status"] = [x for x in run["/autopilot/status"] if not _start_up_report(x)]
+    for topic in sorted(set(a) - set(WALL_PACED)):
+        assert len(a[topic]) == len(b[topic]), f"{mode}: {topic}: {len(a[topic])} vs {len(b[topic])} messages"
+        first = next((i for i, (x, y) in enumerate(zip(a[topic], b[topic])) if x != y), None)
+        assert first is None, f"{mode}: {topic}: payloads differ from message {first} on"
+    assert len(a["/lander/state"]) == round(FLY_S / 0.1) + 1  # every control instant, t = 0 to the end

@@ -396,3 +396,48 @@ def test_control_loop_latency_is_reported_from_the_answers_sequence_numbers(prob
     assert int(d1["control_latency_samples"]) >= 100  # >= 2 s at 50 Hz, every state answered
     p50, p95 = float(d1["control_latency_p50_ms"]), float(d1["control_latency_p95_ms"])
     assert 0.0 < p50 <= p95 < 5000.0, (p50, p95)
+
+
+def test_the_flight_ends_by_itself_at_end_time_with_the_counts_of_what_it_published(probe, scenes):
+    """end_time: the node publishes the end instant's state, then FLIGHT_ENDED with its counts since
+    the reset, then nothing; resume is refused until a reset (docs/sim_node.md, "A flight's span")."""
+    from std_srvs.srv import Trigger
+
+    from lander_sim.ros.flight_span import FlightEnd, parse_matched
+
+    _load(probe, scenes["vertical"])
+    probe.wait_for(lambda: bool(probe.clocks) and probe.clocks[-1] == 0, 10.0, "the load's clock")  # not counted below
+    cli = probe.node.create_client(Trigger, "/lander/subscribers")
+    assert cli.wait_for_service(timeout_sec=30.0)
+    fut = cli.call_async(Trigger.Request())
+    probe.wait_for(fut.done, 30.0, "/lander/subscribers")
+    matched = parse_matched(fut.result().message)
+    # This probe listens to the state and clock and publishes throttles and wind: matched both ways.
+    assert matched["/lander/state"] >= 1 and matched["/clock"] >= 1, matched
+    assert matched["sub:/lander/throttle"] >= 1 and matched["sub:/lander/wind"] >= 1, matched
+
+    end_time = 1.05
+    probe.set_params(end_time=end_time)
+    try:
+        n_states, n_clocks, n_events = len(probe.states), len(probe.clocks), len(probe.events)
+        assert probe.call("reset").success
+        assert probe.call("resume").success
+        ended = lambda: [e for e in probe.events[n_events:] if e.kind == FlightEvent.FLIGHT_ENDED]
+        probe.wait_for(lambda: bool(ended()), 30.0, "FLIGHT_ENDED")
+        end = FlightEnd.from_values(list(ended()[0].values))
+        probe.wait_for(lambda: len(probe.states) - n_states >= end.counts["/lander/state"]
+                       and len(probe.clocks) - n_clocks >= end.counts["/clock"], 10.0, "every state and clock")
+        states = list(probe.states)[n_states:]
+        assert [s.sequence for s in states] == list(range(1, len(states) + 1))
+        assert len(states) == end.counts["/lander/state"] and len(probe.clocks) - n_clocks == end.counts["/clock"]
+        period = (state_ns(states[-1]) - state_ns(states[-2])) * 1e-9
+        # The end instant: the first control instant at or after end_time, and it is the last state.
+        assert state_ns(states[-1]) == round(end.t * 1e9) and end.t - period < end_time <= end.t + 1e-9
+        assert end.reason == "time-limit"
+        refused = probe.call("resume")
+        assert not refused.success and "ended" in refused.message
+        probe.spin_for(0.3)
+        assert len(probe.states) - n_states == end.counts["/lander/state"], "a state after the end"
+    finally:
+        probe.set_params(end_time=-1.0)
+        _load(probe, scenes["vertical"])

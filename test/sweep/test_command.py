@@ -66,3 +66,26 @@ def test_through_ros_count_is_checked(tmp_path, capsys):
     assert "--through-ros: must be >= 1" in capsys.readouterr().err
     assert main(["sweep", spec, "--through-ros", "3"]) == 2
     assert "more than the sweep's 2 flights" in capsys.readouterr().err
+
+
+def test_sweep_without_out_writes_into_a_git_ignored_folder_of_the_working_directory(tmp_path, monkeypatch, capsys):
+    # Issue 17 item 7: the old default, sweep-out/, landed in the repository unignored.
+    import subprocess
+    from pathlib import Path
+
+    from lander_tools.commands.sweep import DEFAULT_OUT
+
+    spec = _write(tmp_path, {**SMALL, "flights": 2, "end": {"duration": 2.0, "demand_step_time": 1.0, "hover_window": 1.0}})
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    assert main(["sweep", spec, "--workers", "1", "--no-plots", "--no-progress"]) == 0
+    capsys.readouterr()
+    written = work / DEFAULT_OUT / SMALL["name"]
+    assert (written / "summary.json").is_file()
+    assert sorted(p.name for p in work.iterdir()) == [DEFAULT_OUT.split("/")[0]]
+    # The same relative path inside the checkout is ignored by git (its .gitignore covers it).
+    repo = Path(__file__).resolve().parents[2]
+    probe = f"{DEFAULT_OUT}/{SMALL['name']}/summary.json"
+    ignored = subprocess.run(["git", "check-ignore", "-q", probe], cwd=repo, check=False)
+    assert ignored.returncode == 0, f"{probe} is not git-ignored in {repo}"

@@ -10,6 +10,7 @@ from lander_sim.physics.constants import MARS_RADIUS
 from lander_tools.bagio import lander_typestore
 
 STATE = "lander_interfaces/msg/LanderState"
+STATUS = "lander_interfaces/msg/AutopilotStatus"
 
 
 def write_flight_bag(
@@ -24,9 +25,11 @@ def write_flight_bag(
     fuel: np.ndarray | None = None,
     storage: str = "mcap",
     meta: dict[str, str] | None = None,
+    status_demand: np.ndarray | None = None,
 ) -> None:
     """A bag with /clock, /lander/state (upright lander on the -y axis, as scene 'hover') and
-    /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised)."""
+    /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised).
+    With ``status_demand`` (one value per state) also /autopilot/status carrying that demand in force."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = lander_typestore()
@@ -49,6 +52,7 @@ def write_flight_bag(
         c_clock = w.add_connection("/clock", "rosgraph_msgs/msg/Clock", typestore=ts)
         c_state = w.add_connection("/lander/state", STATE, typestore=ts)
         c_dem = w.add_connection("/lander/demand_altitude", "std_msgs/msg/Float64", typestore=ts)
+        c_status = w.add_connection("/autopilot/status", STATUS, typestore=ts) if status_demand is not None else None
         events = sorted(demand)
         for i in range(n):
             tb = offset + int(round(t[i] * 1e9))
@@ -77,3 +81,11 @@ def write_flight_bag(
                 stabiliser_on=False,
             )
             w.write(c_state, tb, ts.serialize_cdr(msg, STATE))
+            if c_status is not None:
+                st = T[STATUS](
+                    header=T["std_msgs/msg/Header"](stamp=stamp(t[i]), frame_id=""),
+                    controller="synthetic", saturated=False, steps=i + 1, rejected=0, state_ok=True, last_error="",
+                    throttles=np.asarray(throttles[i], dtype=float), demand_altitude=float(status_demand[i]),
+                    velocity_demanded=False, demand_velocity=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0), mode="",
+                )
+                w.write(c_status, tb, ts.serialize_cdr(st, STATUS))

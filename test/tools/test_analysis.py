@@ -110,3 +110,26 @@ def test_plots_table_json_and_comparison(tmp_path: Path) -> None:
     assert doc["differences"]["b"]["settling_time"] > 0
     text = table([ma, mb])
     assert "difference (2 - 1)" in text and "settling_time [s]" in text
+
+
+def test_demand_in_force_comes_from_the_autopilot_status_and_is_timed_when_flown(tmp_path: Path) -> None:
+    # Issue 17 item 2: the scene's demand is never published on /lander/demand_altitude; the status
+    # carries it from the first state. A demand published at 5.00 s is flown from the next control
+    # instant (5.02 s here), which is when the step starts for the controller.
+    t = np.arange(0, 20, DT)
+    tau = np.clip(t - 5.02, 0.0, None)
+    e, de = _second_order(tau, -10.0, -0.9, -1.1)
+    h = np.where(t < 5.02 - 1e-9, 500.0, 510.0 + e)
+    status = np.where(t < 5.02 - 1e-9, 500.0, 510.0)
+    write_flight_bag(tmp_path / "s", t, h, de, demand=[(5.0, 510.0)], status_demand=status)
+    f = Flight.from_bag(read_bag(tmp_path / "s"))
+    np.testing.assert_allclose(f.demand_t, [0.0, t[502]])
+    np.testing.assert_array_equal(f.demand, [500.0, 510.0])
+    m = metrics(f, band_min=0.0)
+    ts = brentq(lambda x: abs(_second_order(np.array([x]), -10.0, -0.9, -1.1)[0][0]) - 0.2, 0.1, 30.0)
+    assert m.demand_altitude == 510.0 and m.step_size == pytest.approx(10.0, abs=1e-9)
+    assert ts <= m.settling_time <= ts + DT + 1e-9
+    # Without the status only the published demand is known, from when it was published.
+    write_flight_bag(tmp_path / "p", t, h, de, demand=[(5.0, 510.0)])
+    g = Flight.from_bag(read_bag(tmp_path / "p"))
+    np.testing.assert_allclose(g.demand_t, [5.0])

@@ -3,8 +3,12 @@
 As in the original program: after a step that ends below ``R + L/2`` the impact is
 placed on the straight segment between the old and new positions where
 ``|r0 + s (r1 - r0)| = R + L/2`` (a quadratic in ``s``), the state is interpolated
-to that fraction of the step, and the touchdown is a crash if the descent rate or
-the ground speed exceeds the safe limit (1 m/s).
+to that fraction of the step, and the touchdown is classified against the scene's
+limits (:class:`TouchdownLimits`, scene key ``touchdown``): ``safe`` when the descent
+rate, the ground speed and the tilt are all within the safe limits, ``crash`` when any
+exceeds its crash limit, ``hard`` in between. The defaults are the original program's
+``MAX_IMPACT_DESCENT_RATE`` and ``MAX_IMPACT_GROUND_SPEED`` (1 m/s), no tilt limit, and crash
+limits equal to the safe ones (so, as in the original, a touchdown is safe or a crash).
 """
 from __future__ import annotations
 
@@ -14,6 +18,30 @@ from dataclasses import dataclass
 import numpy as np
 
 from lander_sim.physics import constants as c
+
+
+#: Touchdown classes, best first.
+SAFE, HARD, CRASH = "safe", "hard", "crash"
+
+
+@dataclass(frozen=True)
+class TouchdownLimits:
+    """Limits a touchdown is classified against (SI: m/s, rad). ``crash_*`` >= ``safe_*``."""
+
+    safe_descent_rate: float = 1.0
+    safe_ground_speed: float = 1.0
+    safe_tilt: float = math.pi
+    crash_descent_rate: float = 1.0
+    crash_ground_speed: float = 1.0
+    crash_tilt: float = math.pi
+
+    def classify(self, descent_rate: float, ground_speed: float, tilt: float) -> str:
+        """:data:`SAFE`, :data:`HARD` or :data:`CRASH`."""
+        if descent_rate > self.crash_descent_rate or ground_speed > self.crash_ground_speed or tilt > self.crash_tilt:
+            return CRASH
+        if descent_rate > self.safe_descent_rate or ground_speed > self.safe_ground_speed or tilt > self.safe_tilt:
+            return HARD
+        return SAFE
 
 
 @dataclass(frozen=True)
@@ -29,13 +57,19 @@ class Touchdown:
     ground_speed : float
         Horizontal speed at impact [m/s].
     crashed : bool
-        True when either exceeds the safe limit.
+        True when the touchdown is a crash (``classification == "crash"``).
+    tilt : float
+        Angle between the body z axis and the local vertical at impact [rad].
+    classification : str
+        ``safe``, ``hard`` or ``crash`` (:meth:`TouchdownLimits.classify`).
     """
 
     fraction: float
     descent_rate: float
     ground_speed: float
     crashed: bool
+    tilt: float = 0.0
+    classification: str = SAFE
 
 
 @dataclass
@@ -46,6 +80,12 @@ class Ground:
     size: float = c.LANDER_SIZE
     safe_speed: float = 1.0
     name: str = "ground"
+    limits: TouchdownLimits | None = None  # None: safe_speed for both speeds, no tilt limit
+
+    def __post_init__(self) -> None:
+        if self.limits is None:
+            v = self.safe_speed
+            self.limits = TouchdownLimits(v, v, math.pi, v, v, math.pi)
 
     @property
     def contact_radius(self) -> float:
@@ -68,10 +108,13 @@ class Ground:
         s = (-b - math.sqrt(disc)) / (2.0 * a)
         return min(max(s, 0.0), 1.0)
 
-    def classify(self, fraction: float, r_W: np.ndarray, v_W: np.ndarray) -> Touchdown:
-        """Touchdown record for the interpolated impact state."""
+    def classify(self, fraction: float, r_W: np.ndarray, v_W: np.ndarray, z_B_W: np.ndarray | None = None) -> Touchdown:
+        """Touchdown record for the interpolated impact state; ``z_B_W`` is the body z axis in the
+        world frame (``None``: upright, tilt 0)."""
         rhat = r_W / float(np.linalg.norm(r_W))
         vr = float(v_W @ rhat)
         ground_speed = float(np.linalg.norm(v_W - vr * rhat))
-        crashed = -vr > self.safe_speed or ground_speed > self.safe_speed
-        return Touchdown(fraction, -vr, ground_speed, crashed)
+        tilt = 0.0 if z_B_W is None else math.acos(min(1.0, max(-1.0, float(z_B_W @ rhat) / float(np.linalg.norm(z_B_W)))))
+        assert self.limits is not None
+        cls = self.limits.classify(-vr, ground_speed, tilt)
+        return Touchdown(fraction, -vr, ground_speed, cls == CRASH, tilt, cls)

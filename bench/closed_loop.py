@@ -1,0 +1,138 @@
+"""Closed loop speed: the Python loop against the compiled loop, and the two sweep paths, in one run.
+
+* ``python_loops_per_s``: one flight of ``hover-canted`` with the ``combined`` law, core-only, in
+  Python: every 0.1 s ``Simulation.state()`` -> ``controller.update()`` -> ``set_throttles()`` ->
+  ``step()`` (the compiled Verlet kernel does the physics).
+* ``compiled_loops_per_s``: the same flight in the compiled closed loop
+  (:func:`lander_tools.sweep.batched.fly_compiled`, one thread), timed over ``copies`` flights in
+  one call after the set-up; ``trajectory_rel_diff`` is the largest difference of the two loops'
+  states at the control instants, relative to each part's size (position, velocity, quaternion,
+  body rate, fuel).
+* ``per_flight_flights_per_s`` and ``batched_flights_per_s``: ``sweeps/hover-robustness.yaml`` on
+  the per-flight and the batched path (:func:`lander_tools.sweep.runner.run_local`, 2 workers),
+  wall time of the run after start-up; ``summary_equal`` says whether the two summaries print alike.
+  ``batched_1_worker_cpu_s``: CPU seconds of the batched sweep flown in this process (set-up of
+  each flight included), the figure that does not depend on what else the machine is doing.
+
+Timings are noisy on a shared machine: compare the ratios within one run and say the load.
+
+    python bench/closed_loop.py [--json FILE] [--quick]
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+
+import _common as C
+import numpy as np
+
+from lander_autopilot.controllers import Demand, make_controller
+from lander_autopilot.controllers.compiled import compiled_form
+from lander_sim.scenes import load_scene
+from lander_sim.simulation import Simulation
+from lander_tools.sweep import batched, summary
+from lander_tools.sweep import batched_kernel as bk
+from lander_tools.sweep.runner import run_local
+from lander_tools.sweep.spec import load_spec
+
+SCENE, LAW, DURATION = "hover-canted", "combined", 60.0
+PARTS = {"position": slice(0, 3), "velocity": slice(3, 6), "quaternion": slice(6, 10), "body rate": slice(10, 13),
+         "fuel": slice(13, 14)}
+
+
+def python_loop(repeats: int) -> tuple[float, np.ndarray]:
+    """Loops per second of the Python closed loop and the states of its last flight (601, 14)."""
+    scene = load_scene(SCENE)
+    ctrl = make_controller(LAW, scene.vehicle)
+    demand = Demand()
+    n = int(round(DURATION / scene.dt))
+    best = float("inf")
+    for _ in range(repeats):
+        sim = Simulation(scene)
+        ctrl.reset()
+        states = np.empty((n + 1, 14))
+        t0 = time.perf_counter()
+        for k in range(n):
+            states[k] = sim.y
+            out = ctrl.update(sim.t, sim.state(), demand)
+            sim.set_throttles(out.throttles)
+            sim.step()
+        best = min(best, time.perf_counter() - t0)
+        states[n] = sim.y
+    return n / best, states
+
+
+def compiled_loop(copies: int, repeats: int) -> tuple[float, np.ndarray]:
+    """Loops per second of the compiled closed loop (one thread) and one flight's states."""
+    scene = load_scene(SCENE)
+    law = compiled_form(make_controller(LAW, scene.vehicle))
+    sim = Simulation(scene)
+    states = batched.fly_compiled(sim, law, Demand().altitude, DURATION, record_states=True)["states"][0]
+    n = states.shape[0] - 1
+    inputs = batched._pack([batched._Flight(-1, batched.FlightCase(-1, 0), sim, (500.0, 500.0, 0.0))] * copies, n)
+    params, K = law.pack()
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        bk.fly_flights(inputs, params, K, n, 1, scene.dt, scene.dt, sim.ground.contact_radius, parallel=False)
+        best = min(best, time.perf_counter() - t0)
+    return copies * n / best, states
+
+
+def sweep_rates(flights_per_flight: int, flights_batched: int, workers: int) -> dict[str, float | str | bool]:
+    spec = load_spec(C.ROOT / "sweeps" / "hover-robustness.yaml")
+    run_local(dataclasses.replace(spec, flights=4), workers=1, progress=False)  # load the compiled loop (cache)
+    small = dataclasses.replace(spec, flights=flights_per_flight)
+    pf = run_local(small, workers=workers, progress=False, path="per-flight")
+    bt_same = run_local(small, workers=workers, progress=False, path="batched")
+    big = dataclasses.replace(spec, flights=flights_batched)
+    bt = run_local(big, workers=workers, progress=False, path="batched")
+    cpu0 = time.process_time()
+    one = run_local(big, workers=1, progress=False, path="batched")  # in this process: its CPU time is the work
+    cpu = time.process_time() - cpu0
+    text = [summary.format_summary(summary.summarise(r.rows, spec.metrics), []) for r in (pf, bt_same)]
+    return {
+        "per_flight_flights": len(pf.rows), "per_flight_wall_s": pf.wall_time, "per_flight_flights_per_s": pf.flights_per_second,
+        "batched_flights": len(bt.rows), "batched_wall_s": bt.wall_time, "batched_flights_per_s": bt.flights_per_second,
+        "summary_equal": text[0] == text[1], "sweep_workers": workers,
+        "batched_1_worker_wall_s": one.wall_time, "batched_1_worker_cpu_s": cpu,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
+    load = os.getloadavg()[0]
+    py_rate, py_states = python_loop(2 if args.quick else 5)
+    c_rate, c_states = compiled_loop(50 if args.quick else 500, 3)
+    diffs = {name: float(np.max(np.abs(c_states[:, s] - py_states[:, s])) / np.max(np.abs(py_states[:, s])))
+             for name, s in PARTS.items()}
+    sweeps = sweep_rates(50 if args.quick else 200, 200 if args.quick else 1000, 2)
+    data = {
+        "scene": SCENE, "controller": LAW, "flight_s": DURATION, "load_average_1min": load,
+        "python_loops_per_s": py_rate, "compiled_loops_per_s": c_rate, "loop_speedup": c_rate / py_rate,
+        "trajectory_rel_diff": diffs, **sweeps,
+        "sweep_speedup": sweeps["batched_flights_per_s"] / sweeps["per_flight_flights_per_s"],
+    }
+    print(C.table(f"Closed loop, one flight of {SCENE} with {LAW!r} ({DURATION:g} s at 10 Hz; load {load:.1f} on {os.cpu_count()} cores)",
+                  ["loop", "loops/s", "us/loop"],
+                  [["Python", py_rate, 1e6 / py_rate], ["compiled (1 thread)", c_rate, 1e6 / c_rate]]))
+    print(C.table("Compiled vs Python trajectory: max |difference| / max |value| at the control instants",
+                  ["part", "relative difference"], [[k, v] for k, v in diffs.items()]))
+    print(C.table(f"sweeps/hover-robustness.yaml on {sweeps['sweep_workers']} local workers (wall time after start-up)",
+                  ["path", "flights", "wall [s]", "flights/s"],
+                  [["per-flight", sweeps["per_flight_flights"], sweeps["per_flight_wall_s"], sweeps["per_flight_flights_per_s"]],
+                   ["batched", sweeps["batched_flights"], sweeps["batched_wall_s"], sweeps["batched_flights_per_s"]]]))
+    print(f"batched, 1 worker in this process: {sweeps['batched_1_worker_wall_s']:.2f} s wall, "
+          f"{sweeps['batched_1_worker_cpu_s']:.2f} s CPU for {sweeps['batched_flights']} flights "
+          "(CPU time does not depend on other load; on 2 idle cores the 2-worker wall is about half of it)")
+    print(f"loop speed-up {data['loop_speedup']:.0f}x, sweep speed-up {data['sweep_speedup']:.0f}x; "
+          f"summaries of the same {sweeps['per_flight_flights']} flights on both paths "
+          f"{'print alike' if sweeps['summary_equal'] else 'DIFFER'}")
+    C.write_json(args.json, data)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

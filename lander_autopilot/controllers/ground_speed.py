@@ -1,0 +1,173 @@
+"""Ground-speed law (seed 2, section 6: "Can you control the ground speed of the lander as well as
+the orientation and altitude?"): horizontal velocity through the thrust vector, with integral action.
+
+Two loops on the model of :mod:`lander_autopilot.design.translational` (local ENU frame):
+
+* outer, per horizontal axis: ``a_h = -k_p e - k_i int e dt`` with ``e = v_h - v_demand``, gains by
+  pole placement (or LQR) on :func:`~lander_autopilot.design.translational.horizontal_velocity_model`.
+  The specific force asked of the thrust is ``f = a_h + (g + a_U) up``; its direction is the
+  demand attitude (body z along ``f``, body x kept as close to east as possible), its tilt from
+  the vertical limited to ``max_tilt``;
+* inner: the quaternion attitude law (control reference eq 28 with ``J = I``, poles all -2) tracks
+  that attitude, and the collective throttle ``m (g + a_U) / (T_v cos tilt)`` keeps the vertical
+  thrust what the vertical law asks (``a_U``: the altitude law, eq 18, here; the landing law
+  replaces it with its descent-rate law).
+
+The attitude loop (poles at -2) is four times as fast as the outer loop (default poles
+-0.45, -0.5), so the outer loop sees the tilt it asks for after a short lag. With the combined
+law's attitude poles (-1, only twice as fast) the 50 m/s stop rings: +-2.6 m/s for a minute. Saturation is handled
+as by the summed laws (:class:`~.combined.SumController`): the attitude law's differential
+throttles keep priority over the collective. The integrator pauses while the tilt limit clips
+``a_h`` (anti-windup), so a steady wind's drag is cancelled with no steady ground-speed error and
+a 50 m/s start does not wind it up.
+"""
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from lander_sim.physics.constants import GM_MARS, MARS_RADIUS
+from lander_sim.physics.rotation import matrix_to_quat, quat_to_euler, quat_to_matrix
+from lander_sim.physics.state import StateView
+from lander_sim.physics.vehicle import Vehicle
+
+from ..design.translational import local_frame
+from ._params import matrix_param, poles_param, positive_param
+from .altitude import AltitudeController
+from .attitude import QuaternionAttitudeController
+from .base import Controller, ControllerError, Demand
+from .combined import SumController
+
+
+class _Collective(Controller):
+    """The summed law's "altitude" part: the collective throttle the owner computed this step."""
+
+    name: ClassVar[str] = "collective"
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        super().__init__(vehicle)
+        self.level = 0.0
+        self._ones = np.ones(self.n_thrusters)
+
+    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+        return self.level * self._ones
+
+
+class GroundSpeedController(SumController):
+    """Holds the demand altitude and tracks the demand horizontal velocity (zero if none).
+
+    Parameters: ``velocity_poles`` (outer loop, per axis), ``velocity_lqr`` (``[q_int, q_e, r]``:
+    use LQR instead of placement), ``max_tilt`` [rad], ``altitude_poles``, ``attitude_poles``,
+    ``design_fuel``.
+    """
+
+    name: ClassVar[str] = "ground-speed"
+
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        *,
+        velocity_poles: object = (-0.45, -0.5),
+        velocity_lqr: object | None = None,
+        max_tilt: float = 0.7,
+        altitude_poles: object = (-0.9, -1.1),
+        attitude_poles: object = (-2.0,) * 6,
+        design_fuel: float | None = None,
+    ) -> None:
+        from ..design.gains import lqr, place_poles
+        from ..design.translational import horizontal_velocity_model
+
+        self.max_tilt = positive_param("max_tilt", max_tilt)
+        if self.max_tilt >= 1.3:
+            raise ControllerError(f"max_tilt: expected a tilt below 1.3 rad (75 deg), got {self.max_tilt}")
+        A, B = horizontal_velocity_model()
+        if velocity_lqr is None:
+            self.velocity_design = place_poles(A, B, poles_param("velocity_poles", velocity_poles, 2))
+        else:
+            qi, qe, r = matrix_param("velocity_lqr", velocity_lqr, (3,))
+            self.velocity_design = lqr(A, B, np.diag([qi, qe]), np.array([[r]]))
+        self.k_i, self.k_p = (float(k) for k in self.velocity_design.K[0])
+        self.vertical = AltitudeController(vehicle, poles=altitude_poles, design_fuel=design_fuel)
+        self.T_v = self.vertical.T_v
+        super().__init__(
+            vehicle, _Collective(vehicle), QuaternionAttitudeController(vehicle, poles=attitude_poles, design_fuel=design_fuel)
+        )
+        self._integral = np.zeros(2)
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self._integral = np.zeros(2)
+        self._t_last: float | None = None
+        #: Last step's figures (diagnostics and tests): ENU velocity [m/s], tilt demand [rad].
+        self.v_local = np.zeros(3)
+        self.tilt_demand = 0.0
+        self.tilt_clipped = False
+
+    # --- the parts a subclass (the landing law) changes ---------------------------------------
+
+    def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        """Thrust acceleration wanted along ``up`` [m/s^2] (gravity included): eq 18 about the demand."""
+        return self.vertical.vertical_acceleration(h, hd, demand)
+
+    def tilt_limit(self, h: float) -> float:
+        """Largest tilt of the thrust from the vertical the outer loop may ask for [rad]."""
+        return self.max_tilt
+
+    def holds_ground_speed(self) -> bool:
+        """False while the law lets the horizontal motion be (the landing law's coast: there is no
+        thrust to tilt, and chasing the wind with attitude alone only burns fuel)."""
+        return True
+
+    def velocity_demand(self, demand: Demand) -> tuple[float, float]:
+        """Horizontal velocity to track, ENU ``(east, north)`` [m/s]."""
+        return demand.velocity if demand.velocity is not None else (0.0, 0.0)
+
+    # --- the law ---------------------------------------------------------------------------
+
+    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+        r_W = state.r_W
+        L = local_frame(r_W)
+        r = float(np.linalg.norm(r_W))
+        h = r - MARS_RADIUS
+        v = L @ state.v_W
+        self.v_local = v
+        hd = float(v[2])
+        a_up = self.vertical_acceleration(t, h, hd, demand)
+        ve, vn = self.velocity_demand(demand)
+        e = np.array([v[0] - ve, v[1] - vn])
+        hold = self.holds_ground_speed()
+        a_h = -self.k_p * e - self.k_i * self._integral if hold else np.zeros(2)
+        # Tilt limit: |a_h| <= (g + a_U) tan(max tilt). a_up may be ~0 (coasting): keep a floor so
+        # the demand direction stays defined.
+        lift = max(a_up, 0.2 * GM_MARS / (r * r))
+        lim = lift * math.tan(self.tilt_limit(h))
+        n_h = math.hypot(float(a_h[0]), float(a_h[1]))
+        clipped = n_h > lim
+        if clipped:
+            a_h *= lim / n_h
+        if self._t_last is not None and hold and not clipped:
+            dt = t - self._t_last
+            if dt > 0.0:
+                self._integral += e * dt
+        self._t_last = t
+        self.tilt_clipped = clipped
+        # Demand attitude: body z along f = a_h + lift up; body x as near east as possible.
+        f = L.T @ np.array([a_h[0], a_h[1], lift])
+        b3 = f / float(np.linalg.norm(f))
+        b1 = L[0] - float(L[0] @ b3) * b3
+        b1 /= float(np.linalg.norm(b1))
+        q_d = matrix_to_quat(np.array([b1, np.cross(b3, b1), b3]))  # rows: body axes in world (world -> body)
+        self.tilt_demand = math.acos(min(1.0, float(b3 @ L[2])))
+        inner = Demand(altitude=demand.altitude, attitude=tuple(quat_to_euler(q_d).tolist()))  # type: ignore[arg-type]
+        # Collective: the vertical share of the thrust along the *current* body z.
+        z_B_up = float(quat_to_matrix(state.q)[2] @ L[2])
+        m = self.vehicle.mass(state.fuel)
+        self.collective.level = m * a_up / (self.T_v * max(z_B_up, 0.5))
+        return super().command(t, state, inner)
+
+    @property
+    def collective(self) -> _Collective:
+        return self.altitude  # type: ignore[return-value]

@@ -1,0 +1,102 @@
+"""A flight's span as the simulator keeps it: who listens before it starts, what it published when it ends.
+
+Plain Python (no rclpy), shared by the sim node (which answers ``/lander/subscribers`` and builds
+the ``FlightEvent.FLIGHT_ENDED``) and whoever starts a flight or checks a recording against it
+(``lander fly``, the tests). docs/sim_node.md, "A flight's span".
+
+Before a flight starts, ``/lander/subscribers`` (``std_srvs/Trigger``) answers with the number of
+subscriptions each of the simulator's outputs has *matched* (its writers, not just the graph), as
+``"/clock=2 /lander/state=3 ..."`` (:func:`format_matched`, :func:`parse_matched`): a launcher
+resets only when everyone it waits for is matched, so state 1 at t = 0 reaches them all.
+
+The simulator stops by itself at the flight's end instant (its ``end_time`` parameter, or a
+touchdown listed in ``end_on``): it publishes the state of that instant, one last
+``/diagnostics`` and then the ``FLIGHT_ENDED`` event, and advances no further until a reset or
+a new scene. The event's ``values`` are::
+
+    [t_end, reason, n(/clock), n(/lander/state), n(/lander/odom), n(/lander/pose),
+     n(/lander/markers), n(/lander/events), n(/diagnostics)]
+
+``t_end`` [s] the end instant, ``reason`` an index into :data:`END_REASONS`, and ``n(topic)`` the
+messages the simulator published on that topic since the flight's reset (``/lander/events``
+includes this event). Its ``detail`` says the same in words.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+#: Why a flight ended; ``FLIGHT_ENDED.values[1]`` indexes this tuple.
+END_REASONS: tuple[str, ...] = ("time-limit", "landed", "crashed")
+#: The simulator's outputs, in the order of their counts in ``FLIGHT_ENDED.values[2:]``.
+COUNTED_TOPICS: tuple[str, ...] = (
+    "/clock",
+    "/lander/state",
+    "/lander/odom",
+    "/lander/pose",
+    "/lander/markers",
+    "/lander/events",
+    "/diagnostics",
+)
+#: Phases a touchdown may end the flight on (the ``end_on`` parameter).
+END_ON_CHOICES: tuple[str, ...] = ("landed", "crashed")
+
+
+@dataclass
+class FlightEnd:
+    """A decoded ``FLIGHT_ENDED``: end instant [s], reason and messages published per topic."""
+
+    t: float
+    reason: str
+    counts: dict[str, int] = field(default_factory=dict)
+
+    def values(self) -> list[float]:
+        """The event's ``values`` array (see the module docstring)."""
+        return [float(self.t), float(END_REASONS.index(self.reason))] + [
+            float(self.counts.get(topic, 0)) for topic in COUNTED_TOPICS
+        ]
+
+    def detail(self) -> str:
+        """One line a person reads: when, why and what was published."""
+        counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in COUNTED_TOPICS)
+        return f"flight ended at t = {self.t!r} s ({self.reason}); published since the reset: {counts}"
+
+    @classmethod
+    def from_values(cls, values: list[float]) -> FlightEnd:
+        """Decode an event's ``values``; ValueError naming what is wrong with them."""
+        n = 2 + len(COUNTED_TOPICS)
+        if len(values) != n:
+            raise ValueError(f"FLIGHT_ENDED carries {len(values)} values, expected {n} (t_end, reason, counts)")
+        code = int(values[1])
+        if not 0 <= code < len(END_REASONS) or code != values[1]:
+            raise ValueError(f"FLIGHT_ENDED reason {values[1]!r} is not an index into {END_REASONS}")
+        return cls(float(values[0]), END_REASONS[code], {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:])})
+
+
+def parse_end_on(text: str) -> tuple[str, ...]:
+    """The phases of a comma-separated ``end_on`` value; ValueError naming a bad entry."""
+    items = tuple(s.strip() for s in text.split(",") if s.strip())
+    bad = [s for s in items if s not in END_ON_CHOICES]
+    if bad:
+        raise ValueError(f"{', '.join(bad)} not allowed; allowed: {', '.join(END_ON_CHOICES)} (comma-separated)")
+    return items
+
+
+def missing(published: dict[str, int], recorded: dict[str, int]) -> dict[str, tuple[int, int]]:
+    """Topics whose recorded count differs from the published one: ``{topic: (published, recorded)}``."""
+    return {t: (n, recorded.get(t, 0)) for t, n in published.items() if recorded.get(t, 0) != n}
+
+
+def format_matched(counts: dict[str, int]) -> str:
+    """``/lander/subscribers``' answer: ``"topic=count"`` pairs separated by spaces."""
+    return " ".join(f"{t}={n}" for t, n in counts.items())
+
+
+def parse_matched(text: str) -> dict[str, int]:
+    """Decode :func:`format_matched`; ValueError naming a malformed pair."""
+    out: dict[str, int] = {}
+    for pair in text.split():
+        topic, sep, n = pair.partition("=")
+        if not sep or not n.isdigit():
+            raise ValueError(f"/lander/subscribers answered {pair!r}: expected topic=count")
+        out[topic] = int(n)
+    return out

@@ -1,0 +1,50 @@
+"""``lander echo TOPIC [--once]``: print a running flight's messages as JSON lines (``ros2 topic echo``).
+
+Waits for the topic to appear (no flight / no such topic: exit 3); ``--once`` exits 0 after
+the first message, else runs until Ctrl-C.
+"""
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from lander_tools.live.verbs import add_wait_argument
+
+    parser.add_argument("topic", metavar="TOPIC", help="absolute topic name, e.g. /lander/state")
+    parser.add_argument("--once", action="store_true", help="print one message and exit")
+    parser.add_argument("--timeout", type=float, default=None, metavar="S",
+                        help="with --once: give up after S wall seconds without a message (exit 3)")
+    add_wait_argument(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import threading
+
+    from lander_tools.live.link import Outcome, message_to_dict
+    from lander_tools.live.verbs import run_verb
+
+    if not args.topic.startswith("/"):
+        raise ValueError(f"topic names are absolute (start with '/'), got {args.topic!r}")
+
+    def echo(link):
+        msgtype = link.topic_type(args.topic, args.wait)
+        got, done = threading.Event(), threading.Event()
+
+        def show(msg):
+            if args.once and got.is_set():
+                return
+            try:
+                print(json.dumps(message_to_dict(msg)), flush=True)
+            except BrokenPipeError:  # piped into e.g. `head`, which has stopped reading
+                done.set()
+            got.set()
+
+        link.subscribe(args.topic, msgtype, show)
+        if args.once:
+            if not got.wait(args.timeout):
+                raise TimeoutError(f"no message on {args.topic} within {args.timeout:g} s")
+            return Outcome(True, f"one {msgtype} message")
+        done.wait()  # until Ctrl-C, or the reader of our output is gone
+        return Outcome(True, "")
+
+    return run_verb("echo", echo, wait=args.wait)

@@ -1,0 +1,10 @@
+"""Watch and steer a running flight live (issue 15): Foxglove bridge, student page, CLI verbs.
+
+* :mod:`.views`   what the channels show, from a state (plain numpy: frames, trail, plumes)
+* :mod:`.link`    a ROS client of the flight (services, parameters, topics): the verbs and the bridge
+* :mod:`.bridge`  the ``lander live`` process: rclpy node + foxglove WebSocket server
+* :mod:`.page`    the student page's HTTP server; ``web/`` its static files
+* :mod:`.verbs`   the CLI verbs' shared plumbing (``lander demand``, ``wind``, ``pause``, ...)
+
+See docs/live.md.
+"""

@@ -1,0 +1,49 @@
+"""What every CLI verb does around its one action: find the flight, act, print one line.
+
+Exit status: 0 done; 1 refused by the flight (the node's reason is printed); 3 no flight running
+(the simulator or the needed node not seen within :data:`lander_tools.live.link.DISCOVERY_TIMEOUT`
+s, or a service that does not answer). Errors are one line on stderr: ``lander VERB: ...``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+
+from lander_tools.live.link import (
+    DISCOVERY_TIMEOUT,
+    SIM_NODE,
+    FlightLink,
+    NoFlight,
+    Outcome,
+)
+
+EXIT_REFUSED = 1
+EXIT_NO_FLIGHT = 3
+
+
+def add_wait_argument(parser: argparse.ArgumentParser) -> None:
+    """``--wait S``: how long to look for the flight's nodes (every verb has it)."""
+    parser.add_argument("--wait", type=float, default=DISCOVERY_TIMEOUT, metavar="S",
+                        help=f"wall seconds to wait for the flight's nodes to appear (default {DISCOVERY_TIMEOUT:g})")
+
+
+def run_verb(verb: str, action: Callable[[FlightLink], Outcome], needs: str = SIM_NODE,
+             wait: float = DISCOVERY_TIMEOUT) -> int:
+    """Open a link, wait up to ``wait`` s for the simulator and the node ``needs``, run ``action``;
+    print its outcome; return the exit status."""
+    try:
+        with FlightLink(f"lander_{verb}") as link:
+            link.wait_for_node(SIM_NODE, wait)
+            if needs != SIM_NODE:
+                link.wait_for_node(needs, wait)
+            out = action(link)
+    except (NoFlight, TimeoutError) as exc:
+        print(f"lander {verb}: {exc}", file=sys.stderr)
+        return EXIT_NO_FLIGHT
+    if not out.ok:
+        print(f"lander {verb}: refused by the flight: {out.message}", file=sys.stderr)
+        return EXIT_REFUSED
+    extra = "".join(f", {k} {v}" for k, v in (out.values or {}).items())
+    print(f"lander {verb}: {out.message or 'ok'}{extra}")
+    return 0

@@ -1,0 +1,208 @@
+"""What the live channels show, computed from a lander state: plain numpy, no rclpy, no foxglove.
+
+The bridge (:mod:`lander_tools.live.bridge`) turns these into foxglove messages. Frames
+(docs/architecture.md, "Frames and conventions"):
+
+* ``mars``: planet-centred world frame of the simulator (positions ~3.4e6 m from its origin).
+* ``surface``: a local frame fixed to the planet, origin on the surface (radius ``MARS_RADIUS``)
+  straight below the first position seen, z up (radial), so the 3-D view works with small
+  numbers (a float32 renderer at 3.4e6 m would quantise to ~0.25 m).
+* ``base_link``: the body frame; the core's ``q = (s, x, y, z)`` maps world to body
+  (extended-mars-lander-1-dynamics, eq 12-13), which read actively is the orientation of
+  ``base_link`` in ``mars`` (the conversion is :func:`lander_sim.ros.convert.ros_orientation`).
+
+Thrust plumes follow the markers of the sim node (:mod:`lander_sim.ros.markers`): from the point
+of action ``p_i`` along the exhaust direction ``d_i`` (body frame), length
+``PLUME_LENGTH_PER_SIZE * L * throttle_i``.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lander_sim.physics.constants import MARS_RADIUS
+from lander_sim.physics.rotation import body_to_world, matrix_to_quat
+from lander_sim.ros.markers import PLUME_LENGTH_PER_SIZE
+
+#: Phase names of ``LanderState.phase`` (lander_interfaces/msg/LanderState.msg).
+PHASES = ("flying", "landed", "crashed")
+#: Event kind names of ``FlightEvent.kind`` (lander_interfaces/msg/FlightEvent.msg), by value.
+EVENT_KINDS = ("LANDED", "CRASHED", "GIMBAL_LOCK", "FUEL_OUT", "PARACHUTE_DEPLOYED", "PARACHUTE_DESTROYED",
+               "INPUT_REJECTED", "CONTROLLER_SWITCHED", "COMMAND_STALE", "HARD_LANDING",
+               "LANDING_UNREACHABLE", "MODE_CHANGED", "FLIGHT_ENDED")
+
+
+def event_name(kind: int) -> str:
+    """``FlightEvent.kind`` as its constant's name (``KIND_<n>`` for a value this version lacks)."""
+    return EVENT_KINDS[kind] if 0 <= kind < len(EVENT_KINDS) else f"KIND_{kind}"
+
+
+def state_record(msg: Any, demand_altitude: float | None, controller: str, paused: bool) -> dict[str, Any]:
+    """The ``/live/state`` JSON record of one ``LanderState`` (SI units; frames in the names).
+
+    ``t`` is the state's sim time [s]; ``euler_zxz`` (phi, theta, psi) [rad] per
+    extended-mars-lander-1-dynamics eq 3; ``omega_B`` body rates [rad/s]; ``velocity_W`` [m/s].
+    """
+    st = msg.header.stamp
+    v, w = msg.velocity, msg.angular_velocity
+    return {
+        "t": st.sec + st.nanosec * 1e-9,
+        "sequence": int(msg.sequence),
+        "altitude": msg.altitude,
+        "climb_rate": msg.climb_rate,
+        "ground_speed": msg.ground_speed,
+        "euler_zxz": [float(a) for a in msg.euler_zxz],
+        "omega_B": [w.x, w.y, w.z],
+        "velocity_W": [v.x, v.y, v.z],
+        "throttles": [float(x) for x in msg.throttles],
+        "fuel": msg.fuel_mass,
+        "mass": msg.mass,
+        "phase": PHASES[msg.phase] if msg.phase < len(PHASES) else str(msg.phase),
+        "parachute": bool(msg.parachute_deployed),
+        "stabiliser": bool(msg.stabiliser_on),
+        "demand_altitude": demand_altitude,
+        "controller": controller,
+        "paused": paused,
+    }
+
+
+#: JSON schema of ``/live/state`` (what Foxglove's plot panel offers as fields).
+STATE_SCHEMA: dict[str, Any] = {
+    "type": "object",
+    "title": "lander.LiveState",
+    "properties": {
+        "t": {"type": "number", "description": "sim time [s]"},
+        "sequence": {"type": "integer"},
+        "altitude": {"type": "number", "description": "[m] above the surface"},
+        "climb_rate": {"type": "number", "description": "[m/s]"},
+        "ground_speed": {"type": "number", "description": "[m/s]"},
+        "euler_zxz": {"type": "array", "items": {"type": "number"}, "description": "ZXZ Euler angles [rad]"},
+        "omega_B": {"type": "array", "items": {"type": "number"}, "description": "body rates [rad/s], body frame"},
+        "velocity_W": {"type": "array", "items": {"type": "number"}, "description": "[m/s], world frame"},
+        "throttles": {"type": "array", "items": {"type": "number"}, "description": "per thruster, 0..1"},
+        "fuel": {"type": "number", "description": "[kg]"},
+        "mass": {"type": "number", "description": "[kg]"},
+        "phase": {"type": "string"},
+        "parachute": {"type": "boolean"},
+        "stabiliser": {"type": "boolean"},
+        "demand_altitude": {"type": ["number", "null"], "description": "[m]"},
+        "controller": {"type": "string"},
+        "paused": {"type": "boolean"},
+        "position_S": {"type": "array", "items": {"type": "number"}, "description": "[m], surface frame"},
+        "up_S": {"type": "array", "items": {"type": "number"}, "description": "body z axis, surface frame"},
+    },
+}
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A pose: ``position`` [m] and ``orientation`` (x, y, z, w) of a child frame in its parent."""
+
+    position: tuple[float, float, float]
+    orientation: tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Plume:
+    """One thrust plume in the body frame ``base_link``: from ``start_B`` [m] to ``end_B`` [m]."""
+
+    start_B: tuple[float, float, float]
+    end_B: tuple[float, float, float]
+    throttle: float
+
+
+@dataclass
+class SceneTracker:
+    """The 3-D scene of a flight: the local ``surface`` frame, the trail, the plumes.
+
+    ``thrusters`` are ``(position_B, direction_B)`` pairs (body frame, see
+    :class:`lander_sim.physics.vehicle.Thruster`); ``size`` is the lander size L [m].
+    """
+
+    thrusters: Sequence[tuple[Sequence[float], Sequence[float]]]
+    size: float
+    trail_length: int = 2000
+    origin_W: np.ndarray | None = None
+    R_WS: np.ndarray | None = None  # columns: the surface frame's axes in world coordinates
+    trail_S: deque = field(default_factory=deque)
+
+    def __post_init__(self) -> None:
+        self.trail_S = deque(maxlen=self.trail_length)
+
+    def reset(self) -> None:
+        """New epoch (reset / scene load): forget the trail and re-anchor the surface frame."""
+        self.origin_W = self.R_WS = None
+        self.trail_S.clear()
+
+    def _anchor(self, r_W: np.ndarray) -> None:
+        up = r_W / np.linalg.norm(r_W)
+        # East-like x: any axis not parallel to up, made orthogonal (the world z unless near a pole).
+        ref = np.array([0.0, 0.0, 1.0]) if abs(up[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        x = np.cross(ref, up)
+        x /= np.linalg.norm(x)
+        y = np.cross(up, x)
+        self.R_WS = np.column_stack([x, y, up])
+        self.origin_W = MARS_RADIUS * up
+
+    def surface_pose(self) -> Pose:
+        """The ``surface`` frame in ``mars``."""
+        assert self.origin_W is not None and self.R_WS is not None
+        # The core's R(q) maps world to the child frame (dynamics reference eq 12-13): R = R_WS^T;
+        # the same q read actively is the ROS orientation of ``surface`` in ``mars``.
+        q = matrix_to_quat(self.R_WS.T)
+        return Pose(tuple(float(c) for c in self.origin_W), (float(q[1]), float(q[2]), float(q[3]), float(q[0])))
+
+    def add(self, r_W: Sequence[float]) -> tuple[float, float, float]:
+        """Record a world position [m]; returns it in the ``surface`` frame [m]."""
+        r = np.asarray(r_W, dtype=float)
+        if self.origin_W is None:
+            self._anchor(r)
+        p = self.R_WS.T @ (r - self.origin_W)
+        point = (float(p[0]), float(p[1]), float(p[2]))
+        self.trail_S.append(point)
+        return point
+
+    def body_up(self, q_xyzw: Sequence[float]) -> tuple[float, float, float]:
+        """The body z axis (the lander's "up") in the ``surface`` frame, from the ROS orientation
+        ``(x, y, z, w)`` of ``base_link`` in ``mars``."""
+        assert self.R_WS is not None
+        x, y, z, w = q_xyzw
+        z_W = body_to_world(np.array([w, x, y, z], dtype=float), np.array([0.0, 0.0, 1.0]))
+        u = self.R_WS.T @ z_W
+        return (float(u[0]), float(u[1]), float(u[2]))
+
+    def plumes(self, throttles: Sequence[float]) -> list[Plume]:
+        """One plume per thruster, scaled by its throttle (0: zero length)."""
+        out = []
+        for (p_B, d_B), u in zip(self.thrusters, throttles):
+            length = PLUME_LENGTH_PER_SIZE * self.size * max(0.0, float(u))
+            p = tuple(float(c) for c in p_B)
+            d = np.asarray(d_B, dtype=float)
+            end = tuple(float(a + length * b) for a, b in zip(p, d))
+            out.append(Plume(p, end, float(u)))
+        return out
+
+
+def plume_pose(plume: Plume) -> tuple[Pose, float]:
+    """Pose (in ``base_link``) and length [m] of a cylinder along the plume: Foxglove's cylinder
+    primitive has its axis along its local z, centred on its pose."""
+    a, b = np.asarray(plume.start_B), np.asarray(plume.end_B)
+    d = b - a
+    length = float(np.linalg.norm(d))
+    centre = tuple(float(c) for c in (a + b) / 2.0)
+    if length < 1e-12:
+        return Pose(centre, (0.0, 0.0, 0.0, 1.0)), 0.0
+    z = d / length
+    axis = np.cross([0.0, 0.0, 1.0], z)
+    s = float(np.linalg.norm(axis))
+    c = float(z[2])
+    if s < 1e-12:  # parallel or anti-parallel to z
+        return Pose(centre, (0.0, 0.0, 0.0, 1.0) if c > 0 else (1.0, 0.0, 0.0, 0.0)), length
+    axis /= s
+    half = math.atan2(s, c) / 2.0
+    return Pose(centre, (*(float(x) * math.sin(half) for x in axis), math.cos(half))), length

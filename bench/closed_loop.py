@@ -13,6 +13,10 @@
   wall time of the run after start-up; ``summary_equal`` says whether the two summaries print alike.
   ``batched_1_worker_cpu_s``: CPU seconds of the batched sweep flown in this process (set-up of
   each flight included), the figure that does not depend on what else the machine is doing.
+* ``setup_ms_per_flight`` and ``reference_setup_ms_per_flight``: CPU milliseconds to set one
+  flight up for the batched core, the fast way (values derived from the nominal scene's
+  Simulation, :class:`lander_tools.sweep.batched._Template`) and by building the flight's scene and
+  Simulation; ``load_average_1min_end``: the load when the run ended.
 
 Timings are noisy on a shared machine: compare the ratios within one run and say the load.
 
@@ -101,6 +105,21 @@ def sweep_rates(flights_per_flight: int, flights_batched: int, workers: int) -> 
     }
 
 
+def setup_cost(flights: int) -> dict[str, float]:
+    """CPU ms per flight of the batched core's set-up: fast, and building scene + Simulation."""
+    spec = load_spec(C.ROOT / "sweeps" / "hover-robustness.yaml")
+    tpl = batched._template(spec)
+    out = {}
+    for name, make in (("setup_ms_per_flight", lambda i: batched._fast_setup(spec, i, tpl)),
+                       ("reference_setup_ms_per_flight", lambda i: batched._setup(spec, i, 4))):
+        make(0)
+        t0 = time.process_time()
+        for i in range(flights):
+            make(i)
+        out[name] = 1e3 * (time.process_time() - t0) / flights
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     args = C.parser(__doc__.splitlines()[0]).parse_args(argv)
     load = os.getloadavg()[0]
@@ -109,11 +128,13 @@ def main(argv: list[str] | None = None) -> int:
     diffs = {name: float(np.max(np.abs(c_states[:, s] - py_states[:, s])) / np.max(np.abs(py_states[:, s])))
              for name, s in PARTS.items()}
     sweeps = sweep_rates(50 if args.quick else 200, 200 if args.quick else 1000, 2)
+    setup = setup_cost(100 if args.quick else 500)
     data = {
         "scene": SCENE, "controller": LAW, "flight_s": DURATION, "load_average_1min": load,
         "python_loops_per_s": py_rate, "compiled_loops_per_s": c_rate, "loop_speedup": c_rate / py_rate,
         "trajectory_rel_diff": diffs, **sweeps,
         "sweep_speedup": sweeps["batched_flights_per_s"] / sweeps["per_flight_flights_per_s"],
+        **setup, "load_average_1min_end": os.getloadavg()[0],
     }
     print(C.table(f"Closed loop, one flight of {SCENE} with {LAW!r} ({DURATION:g} s at 10 Hz; load {load:.1f} on {os.cpu_count()} cores)",
                   ["loop", "loops/s", "us/loop"],
@@ -130,6 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"loop speed-up {data['loop_speedup']:.0f}x, sweep speed-up {data['sweep_speedup']:.0f}x; "
           f"summaries of the same {sweeps['per_flight_flights']} flights on both paths "
           f"{'print alike' if sweeps['summary_equal'] else 'DIFFER'}")
+    print(f"set-up of one flight for the batched core: {setup['setup_ms_per_flight']:.3f} ms CPU "
+          f"(building its scene and Simulation: {setup['reference_setup_ms_per_flight']:.3f} ms); "
+          f"load {load:.1f} at the start, {data['load_average_1min_end']:.1f} at the end")
     C.write_json(args.json, data)
     return 0
 

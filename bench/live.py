@@ -1,7 +1,8 @@
 """Benchmark: what ``lander live`` costs a flight, and how fast the page is fed.
 
 Each case is a real ``lander fly`` (subprocess) of ``hover-canted`` at speed 0 (as fast as
-possible) in lockstep, recording ``/lander/state``; the runs alternate in one session so the
+possible) in lockstep with dt = 0.02 s (``--dt``; 50 states per sim second, 5x the scene's, so
+the bridge has 5x the messages to take), recording ``/lander/state``; the runs alternate in one session so the
 machine's load hits both alike:
 
 * ``without``: the flight alone;
@@ -65,13 +66,15 @@ def _connect(port: int, proc: subprocess.Popen, channels: list[str]) -> object |
     return None
 
 
-def fly(tmp: Path, name: str, duration: float, live: bool) -> dict[str, object]:
+def fly(tmp: Path, name: str, duration: float, live: bool, dt: float) -> dict[str, object]:
     """One flight (``lander fly ... [--live]``); returns its RTF, the states' CDR bytes from the
     reset on, and how many states the client got."""
     bag = tmp / name
     port = _free_port()
+    params = tmp / f"{name}.params.yaml"
+    params.write_text(f"lander_sim:\n  ros__parameters:\n    dt: {dt}\n")
     cmd = [sys.executable, "-m", "lander_tools.cli", "fly", "hover-canted", "--speed", "0", "--duration",
-           str(duration), "--no-progress", "--record", str(bag), "--topics", "/lander/state"]
+           str(duration), "--no-progress", "--record", str(bag), "--topics", "/lander/state", "--params", str(params)]
     if live:
         cmd += ["--live", "--port", str(port)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -145,6 +148,8 @@ def main() -> int:
     p = parser(__doc__.split("\n\n")[0])
     p.add_argument("--repeats", type=int, default=None, help="flights per case (default 3, --quick 1)")
     p.add_argument("--duration", type=float, default=None, help="sim seconds per flight (default 120, --quick 30)")
+    p.add_argument("--dt", type=float, default=0.02,
+                   help="physics step = control period [s] (default 0.02: 50 states per sim second)")
     args = p.parse_args()
     repeats = args.repeats or (1 if args.quick else 3)
     duration = args.duration or (30.0 if args.quick else 120.0)
@@ -155,7 +160,7 @@ def main() -> int:
         base = None
         for k in range(repeats):
             for live in (False, True):
-                r = fly(Path(tmp), f"{'live' if live else 'plain'}-{k}", duration, live)
+                r = fly(Path(tmp), f"{'live' if live else 'plain'}-{k}", duration, live, args.dt)
                 base = base if base is not None else r["states"]
                 identical = r["states"] == base
                 data["runs"].append({"live": live, "rtf": r["rtf"], "rtf_flying": r["rtf_flying"],
@@ -164,7 +169,7 @@ def main() -> int:
                 rows.append(["with live + 1 client" if live else "without", k + 1, r["rtf"], r["rtf_flying"],
                              len(r["states"]),
                              "yes" if identical else "NO", r["received"] if live else "-"])
-    print(table(f"hover-canted, speed 0, lockstep, {duration:g} s of sim time per flight",
+    print(table(f"hover-canted, dt {args.dt:g} s, speed 0, lockstep, {duration:g} s of sim time per flight",
                 ["case", "run", "RTF (summary)", "RTF (flying, bag)", "states", "bit-identical", "client got"], rows))
     for key, what in (("rtf", "the flight's summary"), ("rtf_flying", "the flying part, from the bag")):
         plain = [r[key] for r in data["runs"] if not r["live"]]

@@ -31,6 +31,16 @@ SUMMARIES: dict[str, str] = {
     "record": "record topics to a rosbag2 bag (MCAP or sqlite3) until Ctrl-C",
     "bench": "run a benchmark from bench/",
     "sweep": "run a parameter sweep without ROS (many flights, in parallel)",
+    "live": "serve a running flight live: Foxglove WebSocket server and the student page",
+    "demand": "set the demand altitude of the running flight (m)",
+    "wind": "set the mean wind of the running flight (world frame, m/s)",
+    "switch": "switch the running flight's controller (optionally with a parameters file)",
+    "pause": "pause the running flight",
+    "resume": "resume the running flight",
+    "step": "advance the paused flight by N physics steps",
+    "reset": "reset the running flight to its scene's start (t = 0)",
+    "topics": "list the running flight's topics and their types",
+    "echo": "print a topic of the running flight (--once: one message)",
 }
 
 EXIT_USAGE = 2

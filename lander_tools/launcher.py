@@ -83,6 +83,9 @@ PARAMS_SECTIONS: dict[str, tuple[str, ...]] = {
     "lander_autopilot": (AUTOPILOT_NODE,), "/lander_autopilot": (AUTOPILOT_NODE,),
     "/**": (SIM_NODE, AUTOPILOT_NODE),
 }
+#: Wall seconds to wait for a lockstep autopilot's answer to state 1, and resets tried in all.
+ANSWER_TIMEOUT = 5.0
+RESET_ATTEMPTS = 3
 #: Wall seconds to wait, after the sim announced the end, for the recorder to hold what it counted.
 DELIVERY_TIMEOUT = 10.0
 #: Wall seconds allowed for discovery, service answers and the first state.
@@ -144,6 +147,7 @@ class FlightPlan:
     timeline: list[Action] = field(default_factory=list)
     end_on: tuple[str, ...] = ("landed", "crashed")
     meta: dict[str, str] = field(default_factory=dict)
+    live: int | None = None  #: Foxglove port of a `lander live` started with the flight (docs/live.md); None: none
 
     def __post_init__(self) -> None:
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
@@ -824,6 +828,11 @@ def start_nodes(f: LaunchedFlight) -> None:
     f.executor.add_node(f.sup.node)
     for name, argv in cmds.items():
         f.procs[name] = NodeProcess(name, argv, f.out, f.env)
+    if f.plan.live is not None:  # `lander live` beside the nodes; counted in expected_subscribers
+        from lander_tools.live.bridge import command as live_command
+
+        f.procs["live"] = NodeProcess("live", live_command(f.plan.live, f.plan.live + 1 if f.plan.live else 0),
+                                      f.out, f.env)
     f.out.write(
         f"[fly] scene {f.plan.scene!r}, controller {f.controller or 'none (sim alone)'}, "
         f"speed {f.plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in f.procs.items()) + "\n"
@@ -848,6 +857,11 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
         for t in COUNTED_TOPICS:
             if sup.recorder.wanted(t):
                 need[t] = need.get(t, 0) + 1
+    if f.plan.live is not None:
+        from lander_tools.live.bridge import SUBSCRIBED_TOPICS
+
+        for t in SUBSCRIBED_TOPICS:
+            need[t] = need.get(t, 0) + 1
     return need
 
 
@@ -931,13 +945,24 @@ def reset_flight(f: LaunchedFlight) -> list[Stop]:
         at_zero = [a for a in timed if math.ceil(a.t / period - 1e-9) <= 0]
         sup.pending = [a for a in sup.pending if a.kind == "throttle"]
         _arm(f.executor, sup, stops[0].t if stops else -1.0)
-    sup.received.clear()  # counts of the flight: from its reset on
-    sup.answered_first, sup.last_answer = False, 0
-    res = _call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
-    if not res.success:
-        raise LaunchError(f"the sim refused the reset: {res.message}")
-    f.wait_for(lambda: sup.states > 0 and (not sup.lockstep or sup.answered_first), STARTUP_TIMEOUT,
-               "no state 1 from the simulator" + (" (or no answer to it from the autopilot)" if sup.lockstep else ""))
+    for attempt in range(1, RESET_ATTEMPTS + 1):
+        sup.received.clear()  # counts of the flight: from its reset on
+        sup.answered_first, sup.last_answer, states0 = False, 0, sup.states
+        res = _call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
+        if not res.success:
+            raise LaunchError(f"the sim refused the reset: {res.message}")
+        f.wait_for(lambda: sup.states > states0, STARTUP_TIMEOUT, "no state 1 from the simulator")
+        try:
+            f.wait_for(lambda: not sup.lockstep or sup.answered_first, ANSWER_TIMEOUT,
+                       "no answer from the autopilot to state 1")
+            break
+        except LaunchError:
+            # The sim's writer matched the autopilot's reader, but that reader had not yet matched
+            # the writer (Fast DDS: a volatile reader then drops the sample). Resetting again asks
+            # again; a recorder then holds both epochs, which the bag check reports (exit 3).
+            if attempt == RESET_ATTEMPTS:
+                raise
+            f.out.write(f"[fly] the autopilot did not answer state 1 within {ANSWER_TIMEOUT} s: resetting again\n")
     for a in at_zero:
         _apply_now(f.executor, sup, a, 0.0)  # in force (the autopilot took the demand) before the first step
     sup._apply_due()  # untimed flights: actions at t = 0 (e.g. a throttle override) before the first step

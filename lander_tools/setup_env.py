@@ -17,6 +17,9 @@ Steps, each redone only when its inputs' hash changed (stamps in .venv/.stamp-<s
 3. ``package``: ``pip install -e .`` of the root package ``mars_lander`` (editable: the source tree
    is what runs; registers the console scripts and the controller entry-point group).
 
+Before the steps, whenever one runs: the Debian packages the tests need beyond the venv
+(``lander_tools/system_packages.py``: chromium for the browser test), with apt-get when root.
+
 Finally it writes ``.venv/lander_env.sh``, which ``./dev`` sources: PATH, AMENT_PREFIX_PATH and
 LD_LIBRARY_PATH, so that users never need to know about them.
 """
@@ -258,6 +261,11 @@ def _lock_path() -> Path:
 
 def _do_steps(stale: list[str]) -> int:
     t0 = time.monotonic()
+    # Debian packages the tests need beyond the venv (chromium for the student page's browser
+    # test), installed with apt-get where we are root (CI's fresh machine); never fails the set-up.
+    import system_packages  # lander_tools/system_packages.py: standard library only
+
+    system_packages.ensure(_say)
     wanted = _wanted_hashes()
     for step in stale:
         _stamp(step).unlink(missing_ok=True)

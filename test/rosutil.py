@@ -233,20 +233,16 @@ class ChildProcess:
 
 
 def param_value(v: object) -> Any:
-    """``rcl_interfaces/ParameterValue`` of a Python value, typed by it: bool, int, float, a list
-    (double array), else a string. (Unlike rclpy's own inference, an empty or mixed list is still
-    a double array: the fuzz tests send those on purpose.)"""
+    """``rcl_interfaces/ParameterValue`` of a Python value, typed by it, as the live bridge makes them
+    (:func:`lander_tools.live.params.parameter_value`); but a list goes as it is into a double
+    array, unconverted (an empty or mixed list too: the fuzz tests send those on purpose)."""
     from rcl_interfaces.msg import ParameterType, ParameterValue
 
-    if isinstance(v, bool):
-        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=v)
-    if isinstance(v, int):
-        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=v)
-    if isinstance(v, float):
-        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=v)
+    from lander_tools.live.params import parameter_value
+
     if isinstance(v, list):
         return ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=v)
-    return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=str(v))
+    return parameter_value(v)
 
 
 def sim_service_clients(node: Any) -> dict[str, Any]:

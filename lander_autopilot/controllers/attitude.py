@@ -140,12 +140,20 @@ class QuaternionAttitudeController(_AttitudeLaw):
         if demand.attitude != self._qd_key:  # the demand quaternion changes rarely: cache it
             self._qd_conj = quat_conj(euler_to_quat(np.asarray(demand.attitude)))
             self._qd_key = demand.attitude
-        qs, qx, qy, qz = quat_mult(self._qd_conj, state.q).tolist()
+        return self._error(self._qd_conj, state, demand.omega_B)
+
+    def _error(self, qd_conj: np.ndarray, state: StateView, omega_d: tuple[float, float, float]) -> np.ndarray:
+        qs, qx, qy, qz = quat_mult(qd_conj, state.q).tolist()
         k = 2.0 if qs >= 0.0 else -2.0
-        (wx, wy, wz), (wxd, wyd, wzd) = state.omega_B.tolist(), demand.omega_B
+        (wx, wy, wz), (wxd, wyd, wzd) = state.omega_B.tolist(), omega_d
         e = self._e
         e[:] = (k * qx, k * qy, k * qz, wx - wxd, wy - wyd, wz - wzd)
         return e
+
+    def command_toward(self, q_d: np.ndarray, state: StateView) -> np.ndarray:
+        """The law's throttles (unclipped) toward the attitude ``q_d`` (world -> body), at rest: for
+        laws that compute their demand as a quaternion (no Euler angles, no singularity)."""
+        return -self._scale(state) * (self.K @ self._error(quat_conj(q_d), state, (0.0, 0.0, 0.0)))
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
         return -self._scale(state) * (self.K @ self.error(state, demand))

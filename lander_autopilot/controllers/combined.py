@@ -16,6 +16,20 @@ from .attitude import EulerAttitudeController, QuaternionAttitudeController
 from .base import UPRIGHT_EULER, ControlOutput, Controller, Demand, saturate
 
 
+def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> np.ndarray:
+    """``collective + differential`` kept inside [0, 1] by moving the collective, not the differential.
+
+    The differential (the attitude law's torque) is kept whole if its spread fits in [0, 1], else
+    shrunk to fit; then the collective moves as little as possible into range.
+    """
+    d = differential
+    lo, hi = float(d.min()), float(d.max())
+    if hi - lo > 1.0:
+        d = d * (1.0 / (hi - lo))
+        lo, hi = lo / (hi - lo), hi / (hi - lo)
+    return min(max(collective, -lo), 1.0 - hi) + d
+
+
 class SumController(Controller):
     """``u = u_altitude + u_attitude`` (unclipped), then clipped by :meth:`Controller.update`.
 
@@ -44,17 +58,10 @@ class SumController(Controller):
         u = u_alt + u_att
         if not self.attitude_priority or (u.min() >= 0.0 and u.max() <= 1.0):
             return u
-        # Collective c (mean altitude throttle) plus differential d. Keep d if its spread fits
-        # in [0, 1] (else shrink it to fit), then move c as little as possible into range.
+        # Collective c (mean altitude throttle) plus differential d.
         c = float(u_alt.mean())
-        d = u - c
-        lo, hi = float(d.min()), float(d.max())
-        if hi - lo > 1.0:
-            d = d * (1.0 / (hi - lo))
-            lo, hi = lo / (hi - lo), hi / (hi - lo)
-        c_fit = min(max(c, -lo), 1.0 - hi)
         self._mixed_from = u
-        return c_fit + d
+        return mix_with_attitude_priority(c, u - c)
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         """As :meth:`Controller.update`; giving up collective throttle counts as saturation and

@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
-from lander_sim.physics.rotation import matrix_to_quat, quat_conj, quat_mult, quat_to_matrix
+from lander_sim.physics.rotation import matrix_to_quat, quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
@@ -47,6 +47,7 @@ from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, plan
 from ._params import positive_param
 from .attitude import QuaternionAttitudeController
 from .base import REQUEST_DEPLOY_PARACHUTE, ControlOutput, Controller, Demand, saturate
+from .combined import mix_with_attitude_priority
 from .ground_speed import GroundSpeedController
 from .landing import LandingController
 
@@ -152,13 +153,6 @@ class DeorbitController(Controller):
         self.log.transitions.append((t, self.phase, phase, why))
         self.phase = phase
 
-    def _attitude_throttles(self, state: StateView, q_d: np.ndarray) -> np.ndarray:
-        """The quaternion law's differential throttles toward ``q_d`` (body-frame error, shortest way)."""
-        qs, qx, qy, qz = quat_mult(quat_conj(q_d), state.q).tolist()
-        k = 2.0 if qs >= 0.0 else -2.0
-        e = np.array([k * qx, k * qy, k * qz, *state.omega_B.tolist()])
-        return -self.attitude._scale(state) * (self.attitude.K @ e)
-
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         out = saturate(self.command(t, state, demand))
         if self.phase in DESCENT_PHASES:
@@ -209,23 +203,8 @@ class DeorbitController(Controller):
             self._to(t, Phase.ENTRY, f"altitude {altitude / 1e3:.1f} km: top of the atmosphere")
         if self.phase in (Phase.SLEW, Phase.BURN):
             retro = -state.v_W / float(np.linalg.norm(state.v_W))
-            d = self._attitude_throttles(state, thrust_axis_attitude(state.q, retro))
+            d = self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state)
             collective = self.burn_throttle if self.phase is Phase.BURN else 0.0
             return mix_with_attitude_priority(collective, d)
         return np.zeros(self.n_thrusters)
-
-
-def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> np.ndarray:
-    """``collective + differential`` kept inside [0, 1] by moving the collective, not the differential.
-
-    The differential (the attitude law's torque) is kept whole if its spread fits in [0, 1], else
-    shrunk to fit; then the collective moves as little as possible into range.
-    """
-    d = differential
-    lo, hi = float(d.min()), float(d.max())
-    if hi - lo > 1.0:
-        d = d * (1.0 / (hi - lo))
-        lo, hi = lo / (hi - lo), hi / (hi - lo)
-    return min(max(collective, -lo), 1.0 - hi) + d
-
 

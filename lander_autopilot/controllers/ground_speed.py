@@ -105,6 +105,7 @@ class GroundSpeedController(SumController):
         self.v_local = np.zeros(3)
         self.tilt_demand = 0.0
         self.tilt_clipped = False
+        self.lift_force = 0.0
 
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
@@ -157,7 +158,8 @@ class GroundSpeedController(SumController):
         # Demand attitude: body z along f = a_h + lift up; body x as near east as possible.
         f = L.T @ np.array([a_h[0], a_h[1], lift])
         b3 = f / float(np.linalg.norm(f))
-        b1 = L[0] - float(L[0] @ b3) * b3
+        x_ref = self.heading_axis(state, L)
+        b1 = x_ref - float(x_ref @ b3) * b3
         b1 /= float(np.linalg.norm(b1))
         q_d = matrix_to_quat(np.array([b1, np.cross(b3, b1), b3]))  # rows: body axes in world (world -> body)
         self.tilt_demand = math.acos(min(1.0, float(b3 @ L[2])))
@@ -165,8 +167,17 @@ class GroundSpeedController(SumController):
         # Collective: the vertical share of the thrust along the *current* body z.
         z_B_up = float(quat_to_matrix(state.q)[2] @ L[2])
         m = self.vehicle.mass(state.fuel)
-        self.collective.level = m * a_up / (self.T_v * max(z_B_up, 0.5))
-        return super().command(t, state, inner)
+        self.lift_force = m * a_up / max(z_B_up, 0.5)  # [N] along body z
+        self.collective.level = self.lift_force / self.T_v
+        return self.mix(t, state, inner)
+
+    def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
+        """World vector the demand body x is kept nearest to: east (a subclass may give the heading up)."""
+        return L[0]
+
+    def mix(self, t: float, state: StateView, inner: Demand) -> np.ndarray:
+        """Throttles from the collective and the attitude law (the summed law's mix, attitude priority)."""
+        return SumController.command(self, t, state, inner)
 
     @property
     def collective(self) -> _Collective:

@@ -27,6 +27,16 @@ exponential limb). Requests: ``deploy_parachute`` once, when the lander is desce
 saved on braking (scenario 1 cannot land without it: 176 m/s at the ground needs more than the
 whole tank). ``landing_unreachable`` once, when the fuel left is less than the estimate of what
 the rest of the descent needs (:meth:`LandingController.fuel_needed`).
+
+Thruster failure (:mod:`.failure`): the law compares the measured body rates with the torque it
+commanded and latches a thruster whose torque is missing (never reading the simulator's flags;
+off under the parachute, whose torques swamp the residual). From then on it gives yaw up (the
+demand heading follows the current one), allocates roll, pitch and lift exactly over the three
+thrusters left (attitude first) and plans the braking on the lift they give without roll or pitch
+torque (the diagonal pair's, half the four's). Measured limits: that lift is about the weight at
+a full tank, and a tilt rate built before detection is taken out only once the yaw spin-up has
+turned the body, so a failure near the ground ends in a harder but upright-er touchdown, not
+yet a safe one (``test_landing_with_a_thruster_failed_mid_descent_touches_down_safely`` is xfail).
 """
 from __future__ import annotations
 
@@ -36,6 +46,7 @@ from typing import ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
@@ -48,6 +59,7 @@ from .base import (
     Demand,
     Request,
 )
+from .failure import ThreeThrusterAllocation, ThrusterFailureDetector
 from .ground_speed import GroundSpeedController
 
 MODES = ("coast", "braking", "flare")
@@ -102,6 +114,9 @@ class LandingController(GroundSpeedController):
         self.half_size = 0.5 * vehicle.size
         self.mdot_max = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)  # [kg/s] at full throttle
         self._chute_k = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2  # [m^2]
+        self.failure_detector = ThrusterFailureDetector(vehicle)
+        self._T_v_all = self.T_v
+        self._mdot_all = self.mdot_max
         self.reset()
 
     def reset(self) -> None:
@@ -110,6 +125,12 @@ class LandingController(GroundSpeedController):
         self._chute_requested = False
         self._unreachable_raised = False
         self._mass = self.vehicle.mass(self.vehicle.fuel_capacity)
+        if hasattr(self, "failure_detector"):
+            self.failure_detector.reset()
+            self.T_v = self._T_v_all
+            self.mdot_max = self._mdot_all
+        #: The allocation over the thrusters left once a failure is detected (None: all work).
+        self.allocation: ThreeThrusterAllocation | None = None
 
     # --- profile ------------------------------------------------------------------------------
 
@@ -202,9 +223,46 @@ class LandingController(GroundSpeedController):
             (("altitude", h), ("airspeed", speed), ("predicted_drag", drag)),
         )
 
+    # --- thruster failure -----------------------------------------------------------------
+
+    def _check_failure(self, t: float, state: StateView) -> None:
+        if self.allocation is not None:
+            return
+        if self._chute_requested:
+            # Under the canopy its restoring and damping torques (hundreds of N m at a few degrees
+            # of tilt, against about 220 N m for a whole thruster) swamp the residual: no decision.
+            self.failure_detector.reset()
+            return
+        i = self.failure_detector.observe(t, state.omega_B, state.fuel)
+        if i is None:
+            return
+        self.allocation = ThreeThrusterAllocation(self.vehicle, i)
+        # The profile's braking acceleration and the fuel estimate follow the lift that is left.
+        self.T_v = self.allocation.max_lift
+        self.mdot_max = sum(th.fuel_rate for j, th in enumerate(self.vehicle.thrusters) if th.enabled and j != i)
+
+    def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
+        if self.allocation is None:
+            return L[0]
+        return quat_to_matrix(state.q)[0]  # yaw given up: keep the current heading
+
+    def mix(self, t: float, state: StateView, inner: Demand) -> np.ndarray:
+        if self.allocation is None:
+            return super().mix(t, state, inner)
+        u_att = self.attitude.command(t, state, inner)
+        torque = u_att @ self.allocation.tau  # what the attitude law asks of the four thrusters [N m]
+        # Yaw is let be: only the roll and pitch torque are allocated (the lander spins up about its
+        # axis, about 1 rad/s^2 with the pair near full throttle).
+        u, saturated = self.allocation.allocate(torque[:2], self.lift_force)
+        if saturated:
+            self._mixed_from = u.copy()
+        return u
+
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         self._mass = self.vehicle.mass(state.fuel)
+        self._check_failure(t, state)
         out = super().update(t, state, demand)  # sets v_local (ENU velocity) and the mode
+        self.failure_detector.commanded(out.throttles)
         h = float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
         hd = float(self.v_local[2])
         requests: list[Request] = []

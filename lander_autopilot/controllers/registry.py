@@ -24,6 +24,7 @@ from .altitude import AltitudeController, AltitudePController, BaselineControlle
 from .attitude import EulerAttitudeController, QuaternionAttitudeController
 from .base import Controller, ControllerError
 from .combined import CombinedController, CombinedQuaternionController, IntegralController, LQRController
+from .deorbit import DeorbitController
 from .ground_speed import GroundSpeedController
 from .landing import LandingController
 
@@ -46,6 +47,7 @@ BUILTINS: dict[str, Factory] = {
         LQRController,
         GroundSpeedController,
         LandingController,
+        DeorbitController,
     )
 }
 

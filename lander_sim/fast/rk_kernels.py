@@ -31,9 +31,11 @@ import numpy as np
 from lander_sim.fast import lander_kernel as _k
 from lander_sim.fast.cache_guard import invalidate_if_changed
 from lander_sim.fast.lander_kernel import njit
+from lander_sim.integrators.adaptive import DP_A, DP_C, DP_E
 
 # These kernels call lander_kernel's (and geometric's free rotor): recompile when those change.
-invalidate_if_changed(__file__, _k.__file__, str(Path(__file__).parents[1] / "integrators" / "geometric.py"))
+invalidate_if_changed(__file__, _k.__file__, str(Path(__file__).parents[1] / "integrators" / "geometric.py"),
+                      str(Path(__file__).parents[1] / "integrators" / "adaptive.py"))
 
 __all__ = ["CompiledModel", "compiled_model", "dop853_span", "dop853_tableau", "dopri5_span", "rk4_steps", "unsupported_model"]
 
@@ -203,20 +205,12 @@ def rk4_steps(y, dt, n, P, force, torque, burn, thr, wind, trans, renormalise): 
     return 4 * n
 
 
-# Dormand-Prince 5(4), as lander_sim.integrators.adaptive (Dormand & Prince 1980).
-_DP_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
+# Dormand-Prince 5(4): the tableau of lander_sim.integrators.adaptive (Dormand & Prince 1980) as arrays.
+_DP_C = np.array(DP_C)
 _DP_A = np.zeros((7, 6))
-for _i, _row in enumerate((
-    (),
-    (1 / 5,),
-    (3 / 40, 9 / 40),
-    (44 / 45, -56 / 15, 32 / 9),
-    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
-    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
-    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
-)):
+for _i, _row in enumerate(DP_A):
     _DP_A[_i, :len(_row)] = _row
-_DP_E = np.array([71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
+_DP_E = np.array(DP_E)
 
 
 @njit(cache=True)

@@ -28,9 +28,10 @@ from lander_sim.integrators.base import (
 from lander_sim.physics.dynamics_protocol import Dynamics
 from lander_sim.physics.state import N_STATE
 
-# Dormand-Prince 5(4) tableau (Dormand & Prince 1980). Row i gives the stage weights a_ij.
-_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
-_A = (
+# Dormand-Prince 5(4) tableau (Dormand & Prince 1980). Row i gives the stage weights a_ij; the
+# compiled form (lander_sim.fast.rk_kernels) builds its arrays from these.
+DP_C = (0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
+DP_A = (
     (),
     (1 / 5,),
     (3 / 40, 9 / 40),
@@ -39,8 +40,8 @@ _A = (
     (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
     (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
 )
-#: Difference between the 5th-order weights (= last row of _A) and the embedded 4th-order ones.
-_E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
+#: Difference between the 5th-order weights (= last row of DP_A) and the embedded 4th-order ones.
+DP_E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
 
 _SAFETY = 0.9
 _FAC_MIN = 0.2
@@ -273,7 +274,7 @@ class AdaptiveDormandPrince:
             np.copyto(ynew, tmp)  # the 5th-order solution is stage 7's argument
             derivative(dyn, t + hs, ynew, k[6], acc)
             err.fill(0.0)
-            for j, e in enumerate(_E):
+            for j, e in enumerate(DP_E):
                 if e != 0.0:
                     err += (hs * e) * k[j]
             scale = atol + rtol * np.maximum(np.abs(y), np.abs(ynew))
@@ -347,8 +348,8 @@ def _stages(dyn: Dynamics, t: float, y: np.ndarray, h: float, k: np.ndarray, tmp
     """Stages 2-6 of one Dormand-Prince step (``k[0] = f(t, y)`` given); leaves the 5th-order solution in ``tmp``."""
     for i in range(1, 7):
         np.copyto(tmp, y)
-        for j, a in enumerate(_A[i]):
+        for j, a in enumerate(DP_A[i]):
             if a != 0.0:
                 tmp += (h * a) * k[j]
         if i < 6:
-            derivative(dyn, t + _C[i] * h, tmp, k[i], acc)
+            derivative(dyn, t + DP_C[i] * h, tmp, k[i], acc)

@@ -31,6 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                         help="sim waits for the autopilot's answer to every state (default: on with an autopilot)")
     parser.add_argument("--no-progress", action="store_true", help="no progress line even on a terminal")
+    parser.add_argument("--live", action="store_true",
+                        help="serve the flight live: Foxglove server and student page, URLs printed (docs/live.md)")
+    parser.add_argument("--port", type=int, default=8765, metavar="P",
+                        help="with --live: Foxglove WebSocket port (default 8765; student page on P + 1)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -74,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
         plan.compose = plan.compose or args.compose
         if args.lockstep is not None:
             plan.lockstep = args.lockstep
+        if args.live:
+            plan.live = args.port
         plan.__post_init__()
         check_plan(plan)  # every name and file, before anything starts
     except (LaunchError, ScriptError) as exc:

@@ -9,13 +9,15 @@ Run (project venv, next to a flight in the same ROS domain)::
 One rclpy node (``/lander_live``) in one process. It only *subscribes* to the flight (it is no
 lockstep participant and never asks for the sim's optional outputs: odometry, pose, markers), so
 a lockstep flight is bit-identical with and without it. The state subscription is best effort
-with depth 1: a busy bridge drops states, it never holds the simulator back.
+with depth 1 and polled (not one Python callback per state): a busy bridge drops states, it never
+holds the simulator back, and its cost does not grow with the flight's speed.
 
 Served (foxglove-sdk ``start_server``; sim time of the latest state is the server's time):
 
 * ``/live/state`` (JSON, :data:`lander_tools.live.views.STATE_SCHEMA`): altitude, climb rate,
-  ground speed, Euler angles, body rates, throttles, fuel, demand, controller, paused; every state
-  while the states come slower than ``max_rate`` Hz of wall time, else the latest at that rate.
+  ground speed, Euler angles, body rates, throttles, fuel, demand, controller, paused; the latest
+  state, taken every ``1 / (2 max_rate)`` s and sent at most ``max_rate`` times a wall second
+  (every state while they come slower than that).
 * ``/live/scene`` (``foxglove.SceneUpdate``): body, one plume per thruster scaled by its
   throttle, trail, ground, parachute when open; ``/live/tf`` (``foxglove.FrameTransforms``):
   ``mars -> surface`` and ``mars -> base_link`` (frames: :mod:`lander_tools.live.views`).
@@ -64,6 +66,9 @@ DEFAULT_PORT = 8765
 DEFAULT_MAX_RATE = 60.0
 WEB_DIR = Path(__file__).resolve().parent / "web"
 AUTOPILOT_PARAMETERS = ("demand_altitude", "controller", "controller_params")
+#: The simulator's topics the bridge subscribes to: what a launcher that starts it must count
+#: among the subscriptions to wait for (lander_tools.launcher.expected_subscribers).
+SUBSCRIBED_TOPICS = ("/lander/state", "/lander/events", "/diagnostics")
 NODE_NAME = "lander_live"
 
 _SERVICE_FIELDS: dict[str, tuple[str, dict[str, Any]]] = {
@@ -205,8 +210,20 @@ class LiveBridge:
         from diagnostic_msgs.msg import DiagnosticArray
         from rcl_interfaces.msg import ParameterEvent
 
+        # The state is not taken per message by an executor (up to thousands a second at --speed 0,
+        # ~26 us of Python each): a node of its own that no executor spins holds the latest state
+        # (depth 1, best effort: DDS keeps it without Python), and a reader thread takes it at
+        # twice the publishing rate cap. Every state is shown while they come slower than that.
+        import rclpy
+
+        self._state_node = rclpy.create_node(NODE_NAME + "_state", context=self.link.context,
+                                             start_parameter_services=False)
+        self._state_sub = self._state_node.create_subscription(LanderState, "/lander/state", lambda _m: None,
+                                                               state_qos, raw=True)
+        self._stop = threading.Event()
+        self._reader = threading.Thread(target=self._read_states, name="live-states", daemon=True)
+        self._reader.start()
         with self.link._lock:
-            node.create_subscription(LanderState, "/lander/state", self._on_state_raw, state_qos, raw=True)
             node.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
             node.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
             node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
@@ -226,10 +243,6 @@ class LiveBridge:
                 self._read_flight()
             if not self.autopilot_read and AUTOPILOT_NODE in names:
                 self._read_autopilot()
-        with self._lock:
-            due = not self._latest_published and time.monotonic() - self._last_out >= self.min_interval
-        if due:
-            self._publish_latest()
         self._publish_status()
 
     def _read_flight(self) -> None:
@@ -256,21 +269,44 @@ class LiveBridge:
         self._publish_parameters()
 
     def close(self) -> None:
+        self._stop.set()
+        self._reader.join(timeout=2.0)
         self.server.stop()
         if self.page is not None:
             self.page.close()
+        try:
+            self._state_node.destroy_node()
+        except Exception:  # noqa: BLE001 - the context may be gone already
+            pass
         self.link.close()
 
     # --- flight -> clients --------------------------------------------------------------------
 
-    def _on_state_raw(self, data: bytes) -> None:
-        # Runs per state (thousands a second at --speed 0): keep only the bytes; decode when due.
-        with self._lock:
-            self.states_in += 1
-            self._latest, self._latest_published = data, False
-            due = time.monotonic() - self._last_out >= self.min_interval
-        if due:
-            self._publish_latest()
+    def _take_state(self) -> bytes | None:
+        """The latest state's CDR bytes if one arrived since the last take, else None."""
+        sub = self._state_sub
+        with sub.handle:
+            taken = sub.handle.take_message(sub.msg_type, True)
+        return None if taken is None else taken[0]
+
+    def _read_states(self) -> None:
+        """The reader thread: take the latest state every half publishing interval; publish it
+        when at least ``1 / max_rate`` has passed since the last one sent."""
+        period = self.min_interval / 2.0
+        while not self._stop.wait(period):
+            try:
+                data = self._take_state()
+            except Exception:  # noqa: BLE001 - the context is shutting down
+                if self._stop.is_set() or not self.link.context.ok():
+                    return
+                raise
+            with self._lock:
+                if data is not None:
+                    self.states_in += 1
+                    self._latest, self._latest_published = data, False
+                due = not self._latest_published and time.monotonic() - self._last_out >= self.min_interval
+            if due:
+                self._publish_latest()
 
     def _publish_latest(self) -> None:
         with self._pub_lock:

@@ -103,6 +103,8 @@ class FoxgloveClient:
         asyncio.run_coroutine_threadsafe(self.ws.send(data), self._loop).result(10.0)
 
     def close(self) -> None:
+        if not self._thread.is_alive():  # the server closed the connection: nothing left to close
+            return
         try:
             asyncio.run_coroutine_threadsafe(self.ws.close(), self._loop).result(5.0)
         except Exception:  # noqa: BLE001

@@ -16,6 +16,16 @@ is made by the same :func:`~.flight.make_row`. A touchdown is handed back to the
 Simulation (its own interpolation and classification); a flight the loop cannot finish (throttles
 the Simulation would refuse) is re-flown per flight, so its error row is the per-flight one.
 
+**Fast set-up.** Building a scene and a Simulation per flight only to read those values back
+costs about four times the compiled flight itself, so when the nominal scene allows it
+(:class:`_Template`: a preset vehicle with ``gyration_sq``, quaternions, no failures or gusts of its
+own, no dispersion keys in its file) the values are derived from the nominal scene's Simulation,
+built once per process, by the very operations the scene loader and the Simulation apply (dry
+mass and inertia times their scales, thrust ``-d_i (T_i s_i)`` per thruster and its torque
+``p_i x F_i``, the initial state re-normalised as the loader does, failure steps, the gust
+process of the case's own seed); ``test_batched.py`` holds them bit-identical to the Simulation's.
+The flight's Simulation is then built only if it is needed (a touchdown to hand back).
+
 Memory is bounded by flying in chunks of ``chunk`` flights.
 """
 from __future__ import annotations
@@ -77,12 +87,25 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
 
 @dataclass
 class _Flight:
-    """One flight's set-up (the per-flight path's objects, kept for touchdown and fallback)."""
+    """One flight's set-up (the per-flight path's objects, kept for touchdown and fallback).
+
+    ``sim`` is the flight's Simulation; with the fast set-up it is None until needed
+    (:meth:`simulation`) and ``values`` holds what :func:`_pack` would read from it."""
 
     index: int
     case: FlightCase
     sim: Any
     demand: tuple[float, float, float]  # before [m], after [m], step time [s]
+    spec: Any = None
+    values: dict[str, Any] | None = None
+
+    def simulation(self) -> Any:
+        """The flight's Simulation (built now from its scene if the fast set-up skipped it)."""
+        if self.sim is None:
+            from lander_sim.simulation import Simulation
+
+            self.sim = Simulation(flown_scene(self.spec, self.case))
+        return self.sim
 
 
 def _setup(spec: SweepSpec, index: int, n_thrusters: int) -> _Flight:
@@ -93,44 +116,192 @@ def _setup(spec: SweepSpec, index: int, n_thrusters: int) -> _Flight:
     return _Flight(index, case, sim, demand_schedule(spec, nominal_scene(spec), case))
 
 
-def _pack(flights: list[_Flight], n_steps: int) -> dict[str, np.ndarray]:
+#: Vehicle keys of a nominal scene file the fast set-up reproduces (a dispersion key would be overwritten).
+_PLAIN_VEHICLE_KEYS = {"preset", "thrusters", "disabled", "size"}
+#: The case fields the fast set-up writes into a flight; a case with others (a new dispersion) is
+#: set up by building its scene and Simulation until :meth:`_Template.values` learns them.
+_KNOWN_CASE_FIELDS = {"index", "seed", "tilt", "tilt_azimuth", "body_rate_B", "altitude_offset", "velocity_W",
+                      "wind_mean_W", "wind_gust", "demand_step", "mass_error", "inertia_error", "thrust_error",
+                      "failed_thruster", "failure_time"}
+
+
+class _Template:
+    """What every flight of a sweep shares, from the nominal scene and its Simulation (built once
+    per process), and the arithmetic that makes one flight's packed values from its case.
+
+    :attr:`why_not` is None when the fast set-up reproduces the per-flight set-up exactly for this
+    scene, else why not (then every flight is set up by building its Simulation)."""
+
+    def __init__(self, spec: SweepSpec) -> None:
+        from lander_sim.simulation import Simulation
+        from lander_tools.sweep.case_scene import _raw
+
+        scene = self.scene = nominal_scene(spec)
+        self.why_not: str | None = None
+        sim = Simulation(scene)
+        fk = sim.fast_kernel
+        v = scene.vehicle
+        try:
+            raw_vehicle = set(_raw(spec)["vehicle"])
+        except Exception as exc:  # noqa: BLE001 - the per-flight set-up reports it
+            raw_vehicle, self.why_not = set(), f"scene not representable: {exc}"
+        if fk is None:
+            self.why_not = "no compiled kernel"
+        elif scene.attitude != "quaternion" or v.gyration_sq is None:
+            self.why_not = "not a quaternion scene with a gyration-radius vehicle"
+        elif scene.thruster_failures or scene.gust is not None:
+            self.why_not = "the nominal scene has failures or gusts of its own"
+        elif not raw_vehicle <= _PLAIN_VEHICLE_KEYS:
+            self.why_not = f"the nominal scene's vehicle has keys {sorted(raw_vehicle - _PLAIN_VEHICLE_KEYS)}"
+        else:
+            import dataclasses
+
+            extra = {f.name for f in dataclasses.fields(FlightCase)} - _KNOWN_CASE_FIELDS
+            if extra:
+                self.why_not = f"the case has fields the fast set-up does not write: {sorted(extra)}"
+        if self.why_not is not None:
+            return
+        self.dt = sim.dt
+        self.params = fk.params.copy()
+        self.burn = np.array(fk.burn, dtype=float)
+        self.dry = v.dry_mass
+        self.k2 = tuple(v.gyration_sq)
+        th = v.thrusters
+        self.max_thrust = [t.max_thrust for t in th]
+        # Thrusters.__post_init__'s operands: -d_i, enabled mask, positions.
+        self.neg_d = np.array([-np.asarray(t.direction_B, float) for t in th]).reshape(-1, 3)
+        self.on = np.array([1.0 if t.enabled else 0.0 for t in th]).reshape(-1, 1)
+        self.pos = np.array([np.asarray(t.position_B, float) for t in th]).reshape(-1, 3)
+        self.stop = sim.ground.contact_radius if sim.ground is not None else 0.0
+        self.has_ground = sim.ground is not None
+        self._demands: dict[float, np.ndarray] = {}
+
+    def demand(self, altitude: float) -> np.ndarray:
+        """``demand_array`` of ``Demand(altitude=altitude)`` (cached: a function of the number alone)."""
+        d = self._demands.get(altitude)
+        if d is None:
+            from lander_autopilot.controllers.base import Demand
+            from lander_autopilot.controllers.compiled import demand_array
+
+            dm = Demand(altitude=altitude)
+            d = self._demands[altitude] = demand_array(dm.altitude, dm.attitude, dm.omega_B)
+        return d
+
+    def values(self, spec: SweepSpec, case: FlightCase) -> dict[str, Any]:
+        """The flight's packed values, as :func:`_pack` reads them from its Simulation: each is
+        computed by the operation the loader / Simulation applies (see the module docstring)."""
+        from lander_sim.physics import rotation
+        from lander_sim.fast import lander_kernel as lk
+        from lander_sim.physics.state import ATT
+        from lander_sim.physics.wind import GustConfig, GustProcess
+        from lander_tools.sweep.case_scene import dispersed_initial_state, gust_seed
+
+        # Initial state: case_scene_data writes it out, the loader re-normalises the quaternion.
+        y = dispersed_initial_state(self.scene, case)
+        y[ATT] = rotation.quat_normalise(y[ATT].copy())
+        # Vehicle: vehicles.disperse (a scale of 1.0, or none, leaves each number as it is).
+        mass_s = 1.0 + case.mass_error if case.mass_error else 1.0
+        inertia_s = 1.0 + case.inertia_error if case.inertia_error else 1.0
+        p = self.params.copy()
+        p[lk.P_DRY] = self.dry * mass_s
+        p[lk.P_K1], p[lk.P_K2], p[lk.P_K3] = (k * inertia_s for k in self.k2)
+        if any(case.thrust_error):
+            tmax = np.array([t * (1.0 + e) for t, e in zip(self.max_thrust, case.thrust_error)])
+        else:
+            tmax = np.array(self.max_thrust, dtype=float)
+        force = self.neg_d * tmax.reshape(-1, 1) * self.on  # Thrusters: -d_i T_max, times enabled
+        torque = np.cross(self.pos, force).reshape(-1, 3)
+        out: dict[str, Any] = {
+            "y0": y, "kparams": p, "force": force, "torque": torque, "burn": self.burn,
+            "mean_wind": np.array([float(a + b) for a, b in zip(self.scene.wind_W, case.wind_mean_W)]),
+            "gust": None, "failures": [],
+        }
+        if case.failed_thruster >= 0:  # Simulation._schedule_failures
+            out["failures"] = [(max(0, math.ceil(float(case.failure_time) / self.dt - 1e-9)), case.failed_thruster)]
+        if case.wind_gust:
+            out["gust"] = GustProcess(GustConfig(sigma=float(case.wind_gust), tau=float(spec.end.gust_time_constant),
+                                                 seed=gust_seed(case)), self.dt)
+        return out
+
+
+_TEMPLATES: dict[str, _Template] = {}
+
+
+def _template(spec: SweepSpec) -> _Template:
+    """The spec's :class:`_Template` (per process, rebuilt if the nominal scene was reloaded)."""
+    scene = nominal_scene(spec)
+    tpl = _TEMPLATES.get(spec.scene)
+    if tpl is None or tpl.scene is not scene:
+        tpl = _TEMPLATES[spec.scene] = _Template(spec)
+    return tpl
+
+
+def _fast_setup(spec: SweepSpec, index: int, tpl: _Template) -> _Flight:
+    """Flight ``index`` set up without building its scene or Simulation (see :class:`_Template`)."""
+    case = draw_case(spec, index, len(tpl.max_thrust))
+    return _Flight(index, case, None, demand_schedule(spec, tpl.scene, case), spec, tpl.values(spec, case))
+
+
+def _sim_values(fl: _Flight) -> dict[str, Any]:
+    """What :func:`_pack` needs, read from the flight's Simulation (the reference set-up)."""
+    sim = fl.sim
+    fk = sim.fast_kernel
+    return {"y0": sim.y, "kparams": fk.params, "force": fk.force, "torque": fk.torque, "burn": fk.burn,
+            "mean_wind": sim.mean_wind_W, "gust": sim.gusts, "failures": sim.scheduled_failures, "copy_rng": True}
+
+
+def _agrees(spec: SweepSpec, fl: _Flight, n_steps: int = 4) -> bool:
+    """Whether the fast set-up of flight ``fl`` packs bit for bit what its Simulation gives."""
+    ref = _setup(spec, fl.index, nominal_scene(spec).vehicle.n_thrusters)
+    # copy_rng: draw from a copy of the gust generator, so ``fl`` keeps its normals for the flight.
+    fast = _Flight(fl.index, fl.case, None, fl.demand, spec, {**(fl.values or {}), "copy_rng": True})
+    a, b = _pack([fast], n_steps), _pack([ref], n_steps)
+    return ref.demand == fl.demand and all(
+        a[k].dtype == b[k].dtype and a[k].shape == b[k].shape and a[k].tobytes() == b[k].tobytes() for k in b)
+
+
+def _pack(flights: list[_Flight], n_steps: int, tpl: _Template | None = None) -> dict[str, np.ndarray]:
     """Arrays over flights for :func:`~.batched_kernel.fly_flights` (see its docstring)."""
     from lander_autopilot.controllers.base import Demand
     from lander_autopilot.controllers.compiled import N_DEMAND, demand_array
 
     F = len(flights)
-    n = flights[0].sim.scene.vehicle.n_thrusters
-    n_fail = max([len(f.sim.scheduled_failures) for f in flights] + [1])
+    vals = [fl.values if fl.values is not None else _sim_values(fl) for fl in flights]
+    n = vals[0]["force"].shape[0]
+    n_fail = max([len(v["failures"]) for v in vals] + [1])
     a: dict[str, np.ndarray] = {
-        "y0": np.zeros((F, 14)), "kparams": np.zeros((F, flights[0].sim.fast_kernel.params.size)),
+        "y0": np.zeros((F, 14)), "kparams": np.zeros((F, vals[0]["kparams"].size)),
         "force": np.zeros((F, n, 3)), "torque": np.zeros((F, n, 3)), "burn": np.zeros((F, n)),
         "mean_wind": np.zeros((F, 3)), "gust_ab": np.zeros((F, 3)), "gust_g0": np.zeros((F, 3)),
         "gust_w": np.zeros((F, n_steps, 3)), "fail_step": np.full((F, n_fail), -1, dtype=np.int64),
         "fail_thruster": np.zeros((F, n_fail), dtype=np.int64), "d_before": np.zeros((F, N_DEMAND)),
         "d_after": np.zeros((F, N_DEMAND)), "t_change": np.zeros(F),
     }
-    for f, fl in enumerate(flights):
-        sim = fl.sim
-        fk = sim.fast_kernel
-        a["y0"][f] = sim.y
-        a["kparams"][f] = fk.params
-        a["force"][f], a["torque"][f], a["burn"][f] = fk.force, fk.torque, fk.burn
-        a["mean_wind"][f] = sim.mean_wind_W
-        g = sim.gusts
+    for f, (fl, v) in enumerate(zip(flights, vals)):
+        a["y0"][f] = v["y0"]
+        a["kparams"][f] = v["kparams"]
+        a["force"][f], a["torque"][f], a["burn"][f] = v["force"], v["torque"], v["burn"]
+        a["mean_wind"][f] = v["mean_wind"]
+        g = v["gust"]
         if g is not None:
             a["gust_ab"][f] = (1.0, g.a, g.b)
             a["gust_g0"][f] = g.gust_W
             # The normals GustProcess.advance would draw, three per step, from the same generator
-            # (a copy: the Simulation stays at its start for a touchdown hand-back).
-            rng = np.random.Generator(type(g.rng.bit_generator)())
-            rng.bit_generator.state = g.rng.bit_generator.state
+            # (a copy when it is the Simulation's: it stays at its start for a touchdown hand-back).
+            rng = g.rng
+            if v.get("copy_rng"):
+                rng = np.random.Generator(type(g.rng.bit_generator)())
+                rng.bit_generator.state = g.rng.bit_generator.state
             rng.standard_normal(out=a["gust_w"][f])
-        for q, (step, thruster) in enumerate(sim.scheduled_failures):
+        for q, (step, thruster) in enumerate(v["failures"]):
             a["fail_step"][f, q], a["fail_thruster"][f, q] = step, thruster
         before, after, t_change = fl.demand
-        d0, d1 = Demand(altitude=before), Demand(altitude=after)
-        a["d_before"][f] = demand_array(d0.altitude, d0.attitude, d0.omega_B)
-        a["d_after"][f] = demand_array(d1.altitude, d1.attitude, d1.omega_B)
+        if tpl is not None:
+            a["d_before"][f], a["d_after"][f] = tpl.demand(before), tpl.demand(after)
+        else:
+            d0, d1 = Demand(altitude=before), Demand(altitude=after)
+            a["d_before"][f] = demand_array(d0.altitude, d0.attitude, d0.omega_B)
+            a["d_after"][f] = demand_array(d1.altitude, d1.attitude, d1.omega_B)
         a["t_change"][f] = t_change
     return a
 
@@ -138,7 +309,7 @@ def _pack(flights: list[_Flight], n_steps: int) -> dict[str, np.ndarray]:
 def _finish_touchdown(fl: _Flight, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
     """Hand the touchdown step to the flight's Simulation: ``(speed, figures, altitude error, tilt, fuel)``
     of the interpolated state, as the per-flight loop sees it."""
-    sim = fl.sim
+    sim = fl.simulation()
     sim.drain_events()
     # The Simulation's own after-step checks: touchdown interpolation, classification, event.
     sim.adopt_step(out["y_prev_last"][f], out["y_last"][f], int(out["k_last"][f]))
@@ -149,10 +320,11 @@ def _finish_touchdown(fl: _Flight, out: dict[str, np.ndarray], f: int) -> tuple[
 
 
 def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = None,
-              parallel: bool = False) -> list[dict[str, Any]]:
+              parallel: bool = False, fast_setup: bool = True) -> list[dict[str, Any]]:
     """Rows of flights ``indices`` for every controller, flown on the batched core; ``parallel``
     runs the compiled loop over the flights on numba's threads (the sweep runner uses processes
-    instead: the per-flight set-up is Python)."""
+    instead: the per-flight set-up is Python). ``fast_setup=False`` builds every flight's scene and
+    Simulation (the reference set-up; the rows are the same)."""
     laws = laws if laws is not None else laws_of(spec)
     if laws is None:
         raise ValueError("fly_chunk: a controller of the spec has no compiled form (use the per-flight path)")
@@ -162,17 +334,32 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
     flights: list[_Flight] = []
     rows: list[dict[str, Any]] = []
     broken: list[int] = []
+    tpl = _template(spec) if fast_setup else None
+    if tpl is not None and tpl.why_not is not None:
+        tpl = None
     for i in indices:
         try:
-            flights.append(_setup(spec, i, scene0.vehicle.n_thrusters))
+            if tpl is not None:
+                flights.append(_fast_setup(spec, i, tpl))
+            else:
+                flights.append(_setup(spec, i, scene0.vehicle.n_thrusters))
         except Exception:  # noqa: BLE001 - the per-flight path makes the error row
             broken.append(i)
+    if tpl is not None and flights and not _agrees(spec, flights[0]):
+        # Guard: the fast set-up must reproduce the reference one exactly (checked on each chunk's
+        # first flight, one scene + Simulation a chunk); if not, set every flight up the reference way.
+        tpl = None
+        flights = [_setup(spec, fl.index, scene0.vehicle.n_thrusters) for fl in flights]
     if flights:
-        inputs = _pack(flights, n_ctrl * n_sub)
-        stop = flights[0].sim.ground.contact_radius if flights[0].sim.ground is not None else 0.0
+        inputs = _pack(flights, n_ctrl * n_sub, tpl)
+        if tpl is not None:
+            stop, dt = tpl.stop, tpl.dt
+        else:
+            sim0 = flights[0].sim
+            stop, dt = (sim0.ground.contact_radius if sim0.ground is not None else 0.0), sim0.dt
         for ci, law in enumerate(laws):
             params, K = law.pack()
-            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, flights[0].sim.dt, stop, parallel)
+            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, dt, stop, parallel)
             for f, fl in enumerate(flights):
                 rows.append(_row(spec, ci, fl, out, f, period))
     for i in broken:
@@ -194,7 +381,7 @@ def _row(spec: SweepSpec, ci: int, fl: _Flight, out: dict[str, np.ndarray], f: i
     if term == bk.TERM_DIVERGED:
         terminal, fuel_end = "diverged", math.nan
     elif term == bk.TERM_TOUCHDOWN:
-        if fl.sim.phase.name != "FLYING":  # handed a touchdown already (another controller): start afresh
+        if fl.simulation().phase.name != "FLYING":  # handed a touchdown already (another controller): start afresh
             fl.sim.reset()
         speed, figures, h, tilt_last, fuel_end = _finish_touchdown(fl, out, f)
         t_last = (ns - 1) * period

@@ -32,7 +32,9 @@ Task = Callable[[SweepSpec, int, int], dict[str, Any]]
 class SweepResult:
     """Rows (one per flight and controller), wall time [s] and how they were run."""
 
-    rows: list[dict[str, Any]]
+    #: A list of dicts (per-flight path) or a compact :class:`~lander_tools.sweep.output.RowTable`
+    #: of read-only row mappings (batched path); either reads as a sequence of rows.
+    rows: Sequence[Any]
     wall_time: float
     engine: str
     workers: int
@@ -72,11 +74,13 @@ def choose_path(spec: SweepSpec, path: str, task: Task | None) -> tuple[str, str
     return ("per-flight", why) if why is not None else ("batched", "")
 
 
-def _chunk_task(spec: SweepSpec, indices: list[int]) -> list[dict[str, Any]]:
-    """Dask's unit of work on the batched path: one chunk of flights, every controller, one thread."""
+def _chunk_task(spec: SweepSpec, indices: list[int]) -> Any:
+    """The unit of work on the batched path: one chunk of flights, every controller, one thread;
+    its rows as a compact :class:`~lander_tools.sweep.output.RowTable` (small to send back and keep)."""
     from lander_tools.sweep.batched import fly_chunk
+    from lander_tools.sweep.output import RowTable
 
-    return fly_chunk(spec, indices, parallel=False)
+    return RowTable(fly_chunk(spec, indices, parallel=False))
 
 
 def tasks_of(spec: SweepSpec, indices: Sequence[int] | None = None) -> list[tuple[int, int]]:
@@ -165,21 +169,25 @@ def _run_local_batched(spec: SweepSpec, n: int, indices: Sequence[int] | None, p
     # once; forked workers inherit both. The wall time counts from after it.
     fly_chunk(spec, idx[:1], parallel=False)
     t0 = time.perf_counter()
+    # Rows are kept as compact columns (RowTable, ~8 bytes a value): a 100,000-flight sweep's
+    # rows take tens of MB, not a dict of Python objects per row.
+    from lander_tools.sweep.output import RowTable
+
+    table = RowTable()
     with _progress(total, progress) as bar:
         advance = _chunk_progress(bar)
-        rows: list[dict[str, Any]] = []
         if n == 1:
             for part in parts:
-                got = fly_chunk(spec, part, parallel=False)
-                rows.extend(got)
+                got = _chunk_task(spec, part)
+                table.extend(got)
                 advance(got)
         else:
             with ProcessPoolExecutor(max_workers=n) as pool:
                 for fut in as_completed([pool.submit(_chunk_task, spec, part) for part in parts]):
                     got = fut.result()
-                    rows.extend(got)
+                    table.extend(got)
                     advance(got)
-    rows.sort(key=lambda r: (r["index"], r["controller_index"]))
+    rows = table.sorted()
     return SweepResult(rows, time.perf_counter() - t0, "local", n, "batched", "")
 
 
@@ -224,12 +232,21 @@ def run_dask(
 
             idx = list(range(spec.flights)) if indices is None else list(indices)
             size = chunk or min(DEFAULT_CHUNK, max(1, -(-len(idx) // (4 * max(1, n)))))
+            from lander_tools.sweep.output import RowTable
+
             futures = client.map(partial(_chunk_task, spec), list(chunks(idx, size)), pure=False)
-            done = (row for f in dask_completed(futures) for row in f.result())
+            table = RowTable()
+            with _progress(len(work), progress) as bar:
+                advance = _chunk_progress(bar)
+                for f in dask_completed(futures):
+                    got = f.result()
+                    table.extend(got)
+                    advance(got)
+            rows: Any = table.sorted()
         else:
             futures = client.map(partial(fn, spec), [c for c, _ in work], [i for _, i in work], pure=False)
             done = (f.result() for f in dask_completed(futures))
-        rows = _collect(done, len(work), progress)
+            rows = _collect(done, len(work), progress)
     finally:
         client.close()
         if cluster is not None:

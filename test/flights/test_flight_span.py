@@ -174,3 +174,14 @@ def test_summary_labels_every_figure_and_says_n_a_where_it_does_not_apply() -> N
     crash = FlightResult("crashed", 1, 83.6, 837, wall_time=1.0, final=orbit.final,
                          touchdown={"t_impact": 83.505, "descent_rate": 176.04, "ground_speed": 0.0})
     assert "touchdown at t = 83.505 s: descent rate 176.04 m/s, ground speed 0.00 m/s" in summary(crash)
+
+
+def test_sweep_replay_records_the_whole_flight(tmp_path: Path) -> None:
+    # `lander sweep --replay I --record` goes through the launcher like `lander fly`: the same span.
+    # Flight 3 of the robustness sweep: dispersed start, wind and gusts, a 60 s scene end.
+    bag = tmp_path / "replay"
+    rc, out = _lander("sweep", "sweeps/hover-robustness.yaml", "--replay", "3", "--record", str(bag),
+                      "--out", str(tmp_path / "sweep"))
+    assert rc == 0, out
+    assert "complete: every message published in the flight is in it" in out, out
+    check_span(bag, 60.0, lockstep=True, sim_only_events=False)

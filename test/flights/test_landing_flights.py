@@ -52,7 +52,10 @@ def test_landing_from_hover(tmp_path: Path) -> None:
     assert modes == ["'coast' -> 'braking'", "'braking' -> 'flare'"]
     assert not [e for e in f.events if e[1] in (EV_PARACHUTE_DEPLOYED, EV_LANDING_UNREACHABLE)]
     st = b.series("/autopilot/status")
-    assert list(dict.fromkeys(st["mode"])) == ["coast", "braking", "flare"]
+    # The autopilot's start-up reports (sent by its watchdog before its first state, so only when
+    # start-up is slow: wall clock) come before the controller has run and carry no mode.
+    flown = st["steps"] > 0
+    assert list(dict.fromkeys(st["mode"][flown])) == ["coast", "braking", "flare"]
     # The flight summary and `lander analyse` give the same figures, each with its unit.
     line = next(x for x in summary(result).splitlines() if "touchdown" in x)
     assert line.startswith("  touchdown at t = ") and f"descent rate {rate:.2f} m/s" in line

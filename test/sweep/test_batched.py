@@ -120,3 +120,81 @@ def test_same_seed_same_summary_on_two_local_processes_and_on_dask(canted):
     assert text == summary.format_summary(summary.summarise(dask.rows, canted.metrics), [])
     per_flight = run_local(canted, workers=1, progress=False, path="per-flight")
     assert text == summary.format_summary(summary.summarise(per_flight.rows, canted.metrics), [])
+
+
+def _bits(a) -> bytes:
+    return np.ascontiguousarray(a).tobytes()
+
+
+@pytest.mark.parametrize("spec_data", [CANTED, LANDING], ids=["canted", "landing"])
+def test_fast_set_up_packs_the_numbers_the_flights_simulation_holds(spec_data):
+    """The fast set-up (no scene, no Simulation per flight) gives, bit for bit, the packed model
+    parameters, thrust, initial state, mean wind, gust process and normals, failure steps and
+    demands that building each flight's scene and Simulation gives."""
+    spec = parse_spec(spec_data, spec_data["name"])
+    tpl = batched._template(spec)
+    assert tpl.why_not is None
+    idx = range(spec.flights)
+    fast = [batched._fast_setup(spec, i, tpl) for i in idx]
+    ref = [batched._setup(spec, i, 4) for i in idx]
+    assert all(f.sim is None for f in fast)
+    n = 120
+    a, b = batched._pack(fast, n, tpl), batched._pack(ref, n)
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].dtype == b[k].dtype and a[k].shape == b[k].shape, k
+        assert _bits(a[k]) == _bits(b[k]), k  # bitwise: -0.0 and NaN payloads included
+    assert tpl.stop == ref[0].sim.ground.contact_radius and tpl.dt == ref[0].sim.dt
+    if spec_data is CANTED:
+        assert (a["fail_step"] >= 0).any() and (a["gust_ab"][:, 0] == 1.0).any()
+    # A flight's Simulation, built when needed (touchdown hand-back), is the reference one.
+    sim = fast[0].simulation()
+    assert _bits(sim.y) == _bits(ref[0].sim.y) and sim.scheduled_failures == ref[0].sim.scheduled_failures
+
+
+@pytest.mark.parametrize("spec_data", [CANTED, LANDING], ids=["canted", "landing"])
+def test_fast_and_reference_set_up_give_bit_identical_rows(spec_data):
+    spec = parse_spec(spec_data, spec_data["name"])
+    fast = batched.fly_chunk(spec, range(spec.flights))
+    ref = batched.fly_chunk(spec, range(spec.flights), fast_setup=False)
+    assert same_rows(fast, ref)
+
+
+def test_compact_rows_read_and_write_as_the_dicts(canted, tmp_path):
+    from lander_tools.sweep import output
+
+    rows = batched.fly_chunk(canted, range(canted.flights))
+    rows[2] = {**rows[2], "outcome": "error", "error": 'line 1\nline "2"'}
+    rows.insert(4, {"index": 3, "controller_index": 9, "controller": "x", "outcome": "error", "success": False, "error": "e"})
+    table = output.RowTable(rows)
+    assert len(table) == len(rows) and same_rows(table, rows) and same_rows([table[-1]], [rows[-1]])
+    assert all(type(v) is type(w) for r, q in zip(table, rows) for v, w in zip(r.values(), q.values()))
+    output.write_json(list(rows), tmp_path / "a.json")
+    output.write_rows_json(table, tmp_path / "b.json")
+    assert (tmp_path / "a.json").read_text() == (tmp_path / "b.json").read_text()
+    output.write_csv(rows, tmp_path / "a.csv")
+    output.write_csv(table, tmp_path / "b.csv")
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+    shuffled = output.RowTable()
+    for part in (rows[8:], rows[:8]):
+        shuffled.extend(output.RowTable(part))
+    assert same_rows(shuffled.sorted(), sorted(rows, key=lambda r: (r["index"], r["controller_index"])))
+
+
+def test_a_fast_set_up_that_disagrees_falls_back_to_the_reference_set_up(canted, monkeypatch):
+    """The per-chunk guard: if the fast set-up stopped reproducing the Simulation (e.g. a new
+    dispersion it does not know), the chunk is set up by building each flight's Simulation."""
+    ref = batched.fly_chunk(canted, range(4), fast_setup=False)
+    tpl = batched._template(canted)
+    assert batched._agrees(canted, batched._fast_setup(canted, 0, tpl))
+    good = batched._Template.values
+
+    def off(self, spec, case):
+        v = good(self, spec, case)
+        v["kparams"] = v["kparams"].copy()
+        v["kparams"][7] *= 1.0 + 1e-12  # the dry mass, one part in 1e12 off
+        return v
+
+    monkeypatch.setattr(batched._Template, "values", off)
+    assert not batched._agrees(canted, batched._fast_setup(canted, 0, tpl))
+    assert same_rows(batched.fly_chunk(canted, range(4)), ref)

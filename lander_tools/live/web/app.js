@@ -4,7 +4,8 @@
 "use strict";
 
 const WINDOW_S = 60;          // seconds of sim time shown in the graphs
-const MANUAL_RATE_HZ = 20;    // manual throttle resend rate (the sim's command hold is 0.5 s sim time)
+const MANUAL_RATE_HZ = 20;
+const MAX_POINTS = 600;       // points drawn per line (the samples are decimated for drawing only)    // manual throttle resend rate (the sim's command hold is 0.5 s sim time)
 const $ = (id) => document.getElementById(id);
 const samples = [];           // state records in the graph window
 // Page-side counters, read by the browser test: states received and when (wall ms).
@@ -112,7 +113,8 @@ function plot(canvas, title, series, unit) {
   if (samples.length < 2) return;
   const t0 = samples[0].t, t1 = Math.max(samples[samples.length - 1].t, t0 + 1e-3);
   let lo = Infinity, hi = -Infinity;
-  for (const s of series) for (const r of samples) { const v = s.get(r); if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }
+  const step = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
+  for (const s of series) for (let i = 0; i < samples.length; i += step) { const v = s.get(samples[i]); if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }
   if (!isFinite(lo)) return;
   if (hi - lo < 1e-6) { lo -= 0.5; hi += 0.5; }
   const pad = 0.05 * (hi - lo); lo -= pad; hi += pad;
@@ -121,10 +123,14 @@ function plot(canvas, title, series, unit) {
   ctx.strokeStyle = "#3a3d45"; ctx.beginPath(); ctx.moveTo(L, 18); ctx.lineTo(L, H - B); ctx.lineTo(W, H - B); ctx.stroke();
   ctx.fillText(hi.toPrecision(5), 2, 24); ctx.fillText(lo.toPrecision(5), 2, H - B);
   ctx.fillText(`t = ${t0.toFixed(1)} .. ${t1.toFixed(1)} s`, W - 150, H - 4);
+  // At most ~MAX_POINTS points per line: drawing every state of a fast flight would cost the
+  // page (and, headless, the machine) more than the data is worth.
+  const stride = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
   series.forEach((s, k) => {
     ctx.strokeStyle = s.color || COLORS[k % COLORS.length]; ctx.beginPath();
     let moved = false;
-    for (const r of samples) {
+    for (let i = 0; i < samples.length; i += stride) {
+      const r = samples[i];
       const v = s.get(r); if (v === null || !isFinite(v)) continue;
       if (!moved) { ctx.moveTo(x(r.t), y(v)); moved = true; } else ctx.lineTo(x(r.t), y(v));
     }
@@ -150,7 +156,8 @@ function drawView(canvas) {
     ctx.setLineDash([]);
   }
   ctx.strokeStyle = "#3a8"; ctx.beginPath();
-  samples.forEach((s, i) => { const px = gx + ((s.position_S ? s.position_S[0] : 0) - (r.position_S ? r.position_S[0] : 0)) * scale, py = gy - s.altitude * scale; if (i) ctx.lineTo(px, py); else ctx.moveTo(px, py); });
+  const stride = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
+  samples.forEach((s, i) => { if (i % stride) return; const px = gx + ((s.position_S ? s.position_S[0] : 0) - (r.position_S ? r.position_S[0] : 0)) * scale, py = gy - s.altitude * scale; if (i) ctx.lineTo(px, py); else ctx.moveTo(px, py); });
   ctx.stroke();
   const ang = r.up_S ? Math.atan2(r.up_S[0], r.up_S[2]) : 0;
   ctx.save(); ctx.translate(gx, gy - r.altitude * scale); ctx.rotate(ang);

@@ -122,11 +122,15 @@ class AutopilotNode(Node):
         self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", OUTPUT_QOS)
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
-        self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
+        self._sub_state = self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
         # "Land": switch to the landing law with demand altitude 0 (docs/autopilot_node.md).
         self.create_service(Trigger, "/autopilot/land", self._srv_land)
+        # Matching seen from this side: a writer can count this reader matched before the reader has
+        # matched the writer (Fast DDS), and a volatile reader drops what comes in between; so a
+        # launcher asks both ends before it starts a flight (docs/autopilot_node.md).
+        self.create_service(Trigger, "/autopilot/matched", self._srv_matched)
         # A law's "deploy the parachute" request goes to the simulator's service.
         self._cli_chute = self.create_client(Trigger, "/lander/deploy_parachute")
         # Own group: while a switch awaits its build, the default group (states, demands, watchdog)
@@ -268,6 +272,16 @@ class AutopilotNode(Node):
             self._publish_status()
             return
         self.get_logger().info(f"demand velocity {self.slot.demand.velocity} m/s (east, north)")
+
+    def _srv_matched(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Publishers matched by the state reader (``sub:/lander/state``) and subscriptions matched by
+        the throttle writer (``/lander/throttle``), as the sim's ``/lander/subscribers`` says them."""
+        from lander_sim.ros.flight_span import format_matched
+
+        response.success = True
+        response.message = format_matched({"sub:/lander/state": self._sub_state.get_publisher_count(),
+                                           "/lander/throttle": self._pub_throttle.get_subscription_count()})
+        return response
 
     def _srv_land(self, request: Trigger.Request, response: Trigger.Response):
         """Switch to the ``landing`` law with demand altitude 0 (one atomic parameter change)."""

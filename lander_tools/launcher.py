@@ -531,6 +531,7 @@ class _Supervisor:
         self.cli_reset = n.create_client(Reset, "/lander/reset")
         self.cli_resume = n.create_client(Trigger, "/lander/resume")
         self.cli_subscribers = n.create_client(Trigger, "/lander/subscribers")
+        self.cli_autopilot_matched = n.create_client(Trigger, "/autopilot/matched")
         self.cli_stab = n.create_client(SetBool, "/lander/set_stabiliser")
         self.cli_chute = n.create_client(Trigger, "/lander/deploy_parachute")
         self.cli_switch = None
@@ -882,8 +883,9 @@ def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
 def wait_until_matched(f: LaunchedFlight) -> None:
     """Phase 2: wait until every subscriber the flight needs is matched on every topic it needs.
 
-    Asked from both ends: the sim's writers (``/lander/subscribers``) and this process's readers
-    (the recorder's and the launcher's own). One more observer (a bridge process) is one more
+    Asked from both ends: the sim's writers (``/lander/subscribers``), this process's readers
+    (the recorder's and the launcher's own) and, with an autopilot, its state reader
+    (``/autopilot/matched``). One more observer (a bridge process) is one more
     entry in :func:`expected_subscribers`."""
     from std_srvs.srv import Trigger
 
@@ -916,6 +918,14 @@ def wait_until_matched(f: LaunchedFlight) -> None:
         res = _call(f.executor, sup.cli_subscribers, Trigger.Request(), STARTUP_TIMEOUT, "subscribers")
         have = parse_matched(res.message)
         waiting.extend(f"sim -> {t}" for t, n in need_sim.items() if have.get(t, 0) < n)
+        if f.controller is not None and not waiting:
+            # the other end of the state's match: the autopilot's reader has the sim's writer
+            if not sup.cli_autopilot_matched.service_is_ready():
+                waiting.append("the autopilot's services")
+                return False
+            res = _call(f.executor, sup.cli_autopilot_matched, Trigger.Request(), STARTUP_TIMEOUT, "autopilot matched")
+            if parse_matched(res.message).get("sub:/lander/state", 0) < 1:
+                waiting.append("autopilot <- /lander/state")
         return not waiting
 
     deadline = time.monotonic() + STARTUP_TIMEOUT

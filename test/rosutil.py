@@ -252,5 +252,5 @@ def sim_service_clients(node: Any) -> dict[str, Any]:
 
     types = {"load_scene": LoadScene, "reset": Reset, "pause": Trigger, "resume": Trigger,
              "step": StepSimulation, "run_until": RunUntil, "deploy_parachute": Trigger,
-             "set_stabiliser": SetBool}
+             "set_stabiliser": SetBool, "subscribers": Trigger}
     return {name: node.create_client(t, f"/lander/{name}") for name, t in types.items()}

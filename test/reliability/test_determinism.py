@@ -42,10 +42,16 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
     # watch + autopilot + recorder on the state; watch + sim + recorder on the command.
     watch.wait_graph({"/lander/state": 3, "/lander/throttle": 3, "/autopilot/status": 2},
                      {"/lander/throttle": 2}, services=("reset", "resume"))
+    from lander_sim.ros.flight_span import parse_matched
+
     closed = 0
     for _attempt in range(6):
         n_thr = len(watch.throttles)
         accepted = int(watch.latest_diag().get("commands_accepted", 0))
+        # A close counts only once the sim's state writer has matched all three readers (watch,
+        # autopilot, recorder): a reader seen in the graph is not yet matched, and a state sent
+        # before the match is not delivered (volatile).
+        everyone = parse_matched(watch.call("subscribers").message).get("/lander/state", 0) >= 3
         assert watch.call("reset").success
         try:
             watch.wait_for(lambda: any(c.state_sequence == 1 for c in watch.throttles[n_thr:]), 3.0,
@@ -54,8 +60,8 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
                            "the sim accepting a command")
         except TimeoutError:
             continue  # a side not matched yet: reset again (state 1 is republished)
-        closed += 1
-        if closed == 2:  # once more after the loop closed: by now the recorder has matched as well
+        closed += everyone
+        if closed == 2:  # once more after that: the readers' side of the match has had a reset's time
             break
     else:
         raise AssertionError("the loop sim -> autopilot -> sim did not close twice in 6 resets")

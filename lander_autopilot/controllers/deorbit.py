@@ -43,6 +43,7 @@ from lander_sim.physics.rotation import matrix_to_quat, quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
+from ..design.altitude import vertical_thrust
 from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, plan
 from ._params import positive_param
 from .attitude import QuaternionAttitudeController
@@ -113,9 +114,11 @@ def thrust_axis_attitude(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
 
 
 class DeorbitController(Controller):
-    """Orbit to entry (module docstring). Parameters (SI): ``slew_time`` [s] before the burn may start,
-    ``burn_throttle`` (collective throttle of the burn, headroom left for the attitude law),
-    ``attitude_poles`` (of the quaternion attitude law), ``design_fuel`` [kg]."""
+    """Orbit to a hover, and to the ground on demand (module docstring). Parameters (SI): ``slew_time``
+    [s] before the burn may start, ``burn_throttle`` (collective throttle of the burn, headroom left
+    for the attitude law), ``hover_band`` [m] and ``hover_speed`` [m/s] (the powered descent hands
+    over to the hover within them), ``attitude_poles`` (of the quaternion attitude law),
+    ``design_fuel`` [kg]."""
 
     name: ClassVar[str] = "deorbit"
 
@@ -131,11 +134,9 @@ class DeorbitController(Controller):
         self.slew_time = positive_param("slew_time", slew_time)
         self.burn_throttle = positive_param("burn_throttle", burn_throttle)
         self.attitude = QuaternionAttitudeController(vehicle, poles=attitude_poles, design_fuel=design_fuel)
-        on = [t for t in vehicle.thrusters if t.enabled]
-        axial = sum(t.max_thrust * float(-t.direction_B[2]) for t in on)
         # the burn runs at burn_throttle: the plan's exhaust speed is the same at any throttle
-        self.entry_vehicle = EntryVehicle(axial_thrust=axial * self.burn_throttle,
-                                          fuel_rate=sum(t.fuel_rate for t in on) * self.burn_throttle,
+        self.entry_vehicle = EntryVehicle(axial_thrust=vertical_thrust(vehicle) * self.burn_throttle,
+                                          fuel_rate=self.descent.mdot_max * self.burn_throttle,
                                           dry_mass=vehicle.dry_mass)
         self.reset()
 
@@ -147,7 +148,6 @@ class DeorbitController(Controller):
         self.plan: DeorbitPlan | None = None
         self.log = PhaseLog([])
         self._t0: float | None = None
-        self._q_target: np.ndarray | None = None
 
     def _to(self, t: float, phase: Phase, why: str) -> None:
         self.log.transitions.append((t, self.phase, phase, why))
@@ -187,10 +187,10 @@ class DeorbitController(Controller):
                 and float(np.linalg.norm(state.v_W)) <= self.hover_speed)
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
-        mass = self.vehicle.mass(state.fuel)
         if self.plan is None:
             self._t0 = t
-            self.plan = plan(state.r_W, state.v_W, mass, self.entry_vehicle, slew_time=self.slew_time)
+            self.plan = plan(state.r_W, state.v_W, self.vehicle.mass(state.fuel), self.entry_vehicle,
+                             slew_time=self.slew_time)
         since = t - (self._t0 or 0.0)
         altitude = self._altitude(state)
         if self.phase is Phase.SLEW and since >= self.plan.burn_start:

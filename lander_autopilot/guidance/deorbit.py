@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.atmosphere import Atmosphere
 
 
 @dataclass(frozen=True)
@@ -130,8 +131,7 @@ def _propagate(position_W: np.ndarray, velocity_W: np.ndarray, t: float, gm: flo
 
 def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
               gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS,
-              rho0: float = c.ATMOSPHERE_SURFACE_DENSITY, scale_height: float = c.ATMOSPHERE_SCALE_HEIGHT,
-              top: float = c.EXOSPHERE_ALTITUDE) -> EntryCheck:
+              atmosphere: Atmosphere | None = None) -> EntryCheck:
     """Fly a point mass (gravity + the body's drag, no thrust, chute packed) from just after the burn.
 
     Stops at the first instant the parachute could open within its limits (speed below its maximum
@@ -144,8 +144,8 @@ def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehic
     kd = 0.5 * vehicle.drag_cd * vehicle.drag_area / mass
     kc = 0.5 * vehicle.chute_cd * vehicle.chute_area
 
-    def rho(h: float) -> float:
-        return rho0 * math.exp(-h / scale_height) if h <= top else 0.0
+    atmosphere = atmosphere or Atmosphere()
+    rho, top = atmosphere.density, atmosphere.exosphere
 
     def f(_t: float, y: np.ndarray) -> np.ndarray:
         r_vec, v_vec = y[:3], y[3:]

@@ -502,8 +502,10 @@ class SimNode(Node):
 
     def _srv_pause(self, request: Trigger.Request, response: Trigger.Response):
         # Nothing is published: the last state (at every tick boundary) already is the pause instant.
+        # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
+        was = "paused" if self._paused else "running"
         self._paused = True
-        response.success, response.message = True, f"paused at t = {self.sim.t!r} s"
+        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was})"
         return response
 
     def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):

@@ -121,7 +121,7 @@ class Recorder:
     _SKIP = ("/rosout", "/parameter_events")
     NODE_NAME = "lander_recorder"
 
-    def __init__(self, owner: Any, config: RecorderConfig, discovery_period: float = 0.1) -> None:
+    def __init__(self, owner: Any, config: RecorderConfig, discovery_period: float = 0.1, hold: bool = False) -> None:
         import rclpy
 
         from lander_sim.ros.delivery import events_executor
@@ -134,6 +134,12 @@ class Recorder:
         self._conns: dict[str, Any] = {}
         self._subs: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
+        #: Set: messages are taken and dropped, counted in :attr:`dropped` (``hold=True`` starts so):
+        #: ``lander record --whole-flight`` matches first and writes from the flight's reset on.
+        self.held = threading.Event()
+        if hold:
+            self.held.set()
+        self.dropped: dict[str, int] = {}
         self.closed = False
         self._error: BaseException | None = None
         self.node = rclpy.create_node(self.NODE_NAME, context=context)
@@ -234,10 +240,13 @@ class Recorder:
     def _writer_for(self, topic: str) -> Callable[[bytes], None]:
         conn = self._conns[topic]
         write = self.writer.write
-        counts = self.counts
+        counts, dropped, held = self.counts, self.dropped, self.held
         now = time.time_ns
 
         def on_message(data: bytes) -> None:
+            if held.is_set():
+                dropped[topic] = dropped.get(topic, 0) + 1
+                return
             # Receive time (wall clock, ns); analysis maps it to sim time through /clock. Runs in
             # the recorder thread, as every other use of the writer: no lock needed.
             write(conn, now(), data)
@@ -301,6 +310,14 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     p.add_argument("-o", "--output", required=True, metavar="BAG", help="bag folder to create (must not exist)")
     p.add_argument("--storage", default="mcap", choices=("mcap", "sqlite3"), help="bag storage (default mcap)")
     p.add_argument("--all", action="store_true", help="record every topic that appears")
+    p.add_argument("--whole-flight", action="store_true",
+                   help="record the running flight whole: once matched, restart it from t = 0 (its reset), "
+                        "record to its end instant and check the bag against what the simulator published "
+                        "(exit 3 if a message is missing); docs/flying.md")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="with --whole-flight: end the flight at this sim time [s] (sets the sim's end_time)")
+    p.add_argument("--wait", type=float, default=10.0, metavar="S",
+                   help="with --whole-flight: wall seconds to wait for the flight's simulator (default 10)")
     p.add_argument(
         "--stop-when-gone",
         metavar="NODE",
@@ -315,7 +332,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def record(args: argparse.Namespace) -> int:
-    """Record as ``args`` (from :func:`build_parser`) say until Ctrl-C / SIGTERM; 0, or 2 on bad options."""
+    """Record as ``args`` (from :func:`build_parser`) say until Ctrl-C / SIGTERM; 0, or 2 on bad options.
+    ``--whole-flight``: :func:`lander_tools.whole_flight.record_whole_flight`."""
+    if getattr(args, "whole_flight", False):
+        from lander_tools.whole_flight import record_whole_flight
+
+        return record_whole_flight(args)
+    if getattr(args, "duration", None) is not None:
+        print("lander record: --duration needs --whole-flight (a recorder alone cannot end a flight)", file=sys.stderr)
+        return 2
     try:
         config = RecorderConfig(
             Path(args.output), args.storage, tuple(args.topics) or DEFAULT_TOPICS, bool(args.all)

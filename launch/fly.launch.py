@@ -1,15 +1,15 @@
 """Fly a scene on a full ROS 2 install: the sim node and (unless the scene has no autopilot or
-``controller:=none``) the autopilot node, optionally recorded with ``ros2 bag record``.
+``controller:=none``) the autopilot node, optionally recorded whole (``lander record --whole-flight``).
 
     ros2 launch mars_lander fly.launch.py scene:=hover speed:=1.0
     ros2 launch mars_lander fly.launch.py scene:=7 controller:=baseline params_file:=my.yaml
-    ros2 launch mars_lander fly.launch.py scene:=free-spin controller:=none record:=out/spin
+    ros2 launch mars_lander fly.launch.py scene:=free-spin controller:=none record:=out/spin duration:=30
 
 Mirrors ``lander fly`` (lander_tools/launcher.py), which does the same where ``launch`` is not
-installed (ROS 2 from PyPI). Differences: the sim starts running rather than paused, the whole
-launch shuts down when the sim node exits (``lander fly`` also ends on landing, crash or
-``--duration``), and there is no ``--compose`` (Python nodes cannot be loaded into a C++
-component container).
+installed (ROS 2 from PyPI). Differences: the sim starts running rather than paused (a recording
+restarts it from t = 0 once matched), the whole launch shuts down when the sim node exits or the
+recording ends (``lander fly`` also ends on landing or crash), and there is no ``--compose``
+(Python nodes cannot be loaded into a C++ component container).
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess, OpaqueFunction, RegisterEventHandler
@@ -24,7 +24,9 @@ ARGS = {
     "speed": ("1.0", "real-time factor, 0 = as fast as possible"),
     "lockstep": ("true", "the sim waits for the autopilot's answer to each state (with an autopilot)"),
     "params_file": ("", "ROS parameters YAML with sections lander_sim / autopilot"),
-    "record": ("", "bag folder: record the flight with ros2 bag record (MCAP)"),
+    "record": ("", "bag folder: record the whole flight (lander record --whole-flight, MCAP); the launch ends "
+                   "with the recording"),
+    "duration": ("", "end the flight at this sim time [s] (the sim's end_time); empty: no end"),
 }
 
 
@@ -48,6 +50,8 @@ def _nodes(context):
                   "lockstep": bool(controller) and arg["lockstep"].lower() == "true"}
     if not controller:
         sim_params["command_timeout"] = 0.0  # the sim alone holds the last command for good
+    if arg["duration"]:
+        sim_params["end_time"] = float(arg["duration"])  # the sim stops itself there (docs/sim_node.md)
     sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
                parameters=[*files, sim_params])
     actions = [
@@ -58,11 +62,12 @@ def _nodes(context):
         actions.append(Node(package="mars_lander", executable="autopilot_node", name="autopilot", output="screen",
                             parameters=[*files, {"scene": arg["scene"], "controller": controller, "use_sim_time": True}]))
     if arg["record"]:
-        actions.append(ExecuteProcess(cmd=["ros2", "bag", "record", "-s", "mcap", "-o", arg["record"],
-                                           "/clock", "/lander/state", "/lander/odom", "/lander/pose", "/lander/throttle",
-                                           "/lander/wind", "/lander/demand_altitude", "/lander/events",
-                                           "/lander/markers", "/autopilot/status", "/diagnostics"],
-                                      output="screen"))
+        # Not `ros2 bag record`, which holds the flight only from when it is matched: ours restarts
+        # the flight from t = 0 once matched and checks the bag at the end (docs/flying.md).
+        recorder = ExecuteProcess(cmd=["ros2", "run", "mars_lander", "lander", "record", "-o", arg["record"],
+                                       "--whole-flight", "--wait", "30"], output="screen")
+        actions += [recorder, RegisterEventHandler(OnProcessExit(
+            target_action=recorder, on_exit=[EmitEvent(event=Shutdown(reason="recording ended"))]))]
     return actions
 
 

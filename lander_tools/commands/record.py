@@ -1,8 +1,11 @@
-"""``lander record -o BAG [--storage mcap|sqlite3] [--all] [--stop-when-gone NODE] [--live [--port P]] [TOPIC ...]``.
+"""``lander record -o BAG [--storage mcap|sqlite3] [--all] [--stop-when-gone NODE] [--whole-flight
+[--duration S] [--wait S]] [--live [--port P]] [TOPIC ...]``.
 
 Records topics into a rosbag2 bag until Ctrl-C / SIGTERM (our own ``ros2 bag record`` for ROS 2
 from PyPI): a thin wrapper over :mod:`lander_tools.recorder`. Exit status 0, or 2 for a bad option
-(existing output, unknown storage, relative topic name). Heavy imports (rclpy) happen in :func:`run`.
+(existing output, unknown storage, relative topic name). ``--whole-flight`` restarts the running
+flight from t = 0 and records it to its end, checked (:mod:`lander_tools.whole_flight`: exit 1 no
+flight, 3 a message missing). Heavy imports (rclpy) happen in :func:`run`.
 """
 
 import argparse
@@ -28,10 +31,20 @@ def run(args: argparse.Namespace) -> int:
     from lander_tools.live.bridge import command
 
     # `lander live` beside the recorder, in its own process (it dies with this one).
-    bridge = subprocess.Popen(command(args.port, args.port + 1 if args.port else 0))
+    bridges: list[subprocess.Popen[bytes]] = []
+
+    def start_bridge() -> None:
+        bridges.append(subprocess.Popen(command(args.port, args.port + 1 if args.port else 0)))
+
     try:
+        if args.whole_flight:  # the bridge joins after the reset, so it is no reader the protocol waits for
+            from lander_tools.whole_flight import record_whole_flight
+
+            return record_whole_flight(args, on_started=start_bridge)
+        start_bridge()
         return record(args)
     finally:
-        if bridge.poll() is None:
-            bridge.terminate()
-        bridge.wait(10)
+        for bridge in bridges:
+            if bridge.poll() is None:
+                bridge.terminate()
+            bridge.wait(10)

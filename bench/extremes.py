@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 import sys
 
+import _common as C
 import numpy as np
 
-import _common as C
 from lander_sim.integrators import make
 from lander_sim.integrators.reference import quat_distance
 from lander_sim.physics import rotation

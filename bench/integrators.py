@@ -15,12 +15,12 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
-
-import numpy as np
 
 import _common as C
+import numpy as np
+
 from lander_sim.integrators import make
 from lander_sim.integrators.health import HealthMonitor, angular_momentum_W
 from lander_sim.integrators.reference import kepler_state, quat_distance

@@ -35,7 +35,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:  # `python bench/live.py` from a source checkout
     sys.path.insert(0, str(REPO))
 
-from bench._common import parser, table, write_json
+from bench._common import parser, table, write_json  # noqa: E402 - after the sys.path line above
 
 CHANNELS = ["/live/state", "/live/scene", "/live/tf", "/live/events", "/live/status"]
 _RTF = re.compile(r"(?:RTF|real-time factor) ([0-9.]+)x")

@@ -9,12 +9,21 @@ from __future__ import annotations
 import sys
 import time
 
+import _common as C
 import numpy as np
 
-import _common as C
 from lander_sim.integrators import make
 from lander_sim.physics.dynamics import LanderDynamics
-from lander_sim.physics.models import Atmosphere, Inputs, InverseSquareGravity, MeshDrag, Parachute, SphereDrag, Thrusters, sphere_mesh
+from lander_sim.physics.models import (
+    Atmosphere,
+    Inputs,
+    InverseSquareGravity,
+    MeshDrag,
+    Parachute,
+    SphereDrag,
+    Thrusters,
+    sphere_mesh,
+)
 from lander_sim.physics.models.parachute import ChuteStatus
 from lander_sim.scenes import list_scenes, load_scene
 from lander_sim.simulation import Phase, Simulation

@@ -24,10 +24,11 @@ GOAL = 50.0
 def _measure(scene: str, dt: float, seconds: float, subscribe: bool) -> dict:
     import rclpy
     from geometry_msgs.msg import PoseStamped
-    from lander_interfaces.msg import LanderState
     from nav_msgs.msg import Odometry
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
+
+    from lander_interfaces.msg import LanderState
 
     args = [sys.executable, "-m", "lander_sim.node", "--ros-args", "-p", f"scene:={scene}", "-p", f"dt:={dt}",
             "-p", "publish_rate:=50.0", "-p", "speed:=0.0", "-p", "command_timeout:=0.0"]

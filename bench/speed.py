@@ -17,9 +17,9 @@ import sys
 import tempfile
 import time
 
+import _common as C
 import numpy as np
 
-import _common as C
 from lander_sim import fast
 from lander_sim.physics import constants as const
 from lander_sim.physics import rotation
@@ -91,11 +91,11 @@ def naive_verlet(y0: np.ndarray, n: int) -> np.ndarray:
 def _startup(cache_dir: str) -> float:
     """Seconds for import + first kernel call in a fresh interpreter using ``cache_dir``."""
     code = (
-        "import time,sys; sys.path.insert(0, %r); t=time.perf_counter();"
+        f"import time,sys; sys.path.insert(0, {str(C.ROOT)!r}); t=time.perf_counter();"
         "import numpy as np; from lander_sim.fast import lander_kernel as k;"
         "y=np.zeros(14); y[1]=-3.4e6; y[6]=1.0; y[13]=1.0; p=np.zeros(k.N_PARAMS); p[k.P_DRY]=1; p[k.P_K1]=p[k.P_K2]=p[k.P_K3]=1;"
         "k.verlet_steps(y, np.empty(14), 1, 0.01, p, np.zeros((1,3)), np.zeros((1,3)), np.zeros(1), np.zeros(1), np.zeros(3), 0.0);"
-        "print(time.perf_counter()-t)" % str(C.ROOT)
+        "print(time.perf_counter()-t)"
     )
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)

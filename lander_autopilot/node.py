@@ -32,10 +32,10 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
-from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
-from lander_interfaces.srv import SwitchController
+from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -44,7 +44,6 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from geometry_msgs.msg import Vector3Stamped
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -65,6 +64,8 @@ from lander_autopilot.ros.config import (
     scene_autopilot,
 )
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
+from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
+from lander_interfaces.srv import SwitchController
 from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
 from lander_sim.scenes import load_scene
 

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
 from lander_sim import fast, integrators
 from lander_sim.errors import InputError
+from lander_sim.integrators.base import Integrator
 from lander_sim.physics import rotation
 from lander_sim.physics.dynamics import LanderDynamics
 from lander_sim.physics.events import Event, EventKind, Phase
@@ -134,7 +135,7 @@ class Snapshot:
     stabiliser: bool
     near_lock: bool
     fuel_out: bool
-    integrator: object
+    integrator: Integrator
     mean_wind_W: np.ndarray | None = None
     gusts: object = None
     failed: np.ndarray | None = None
@@ -381,7 +382,7 @@ class Simulation:
         return list(self._failures)
 
     @property
-    def fast_kernel(self) -> "fast.FastLander | None":
+    def fast_kernel(self) -> fast.FastLander | None:
         """The compiled kernel's packed parameters for this scene (None when the scene has no fast path)."""
         return self._fast
 
@@ -485,7 +486,7 @@ class Simulation:
         R = dyn.rotation_matrix(y)
         A, B, C = dyn.inertia(float(y[FUEL]))
         ke = kinetic_energy(A, B, C, w) + (0.5 * mass * float(v @ v) if dyn.translation else 0.0)
-        pe = sum(m.potential(r, R, mass) for m in dyn.models if hasattr(m, "potential"))  # type: ignore[attr-defined]
+        pe = sum(m.potential(r, R, mass) for m in dyn.models if hasattr(m, "potential"))
         L_W = R.T @ np.array([A * w[0], B * w[1], C * w[2]])
         if self.scene.attitude == "quaternion":
             E = rotation.quat_to_euler(y[ATT])

@@ -18,8 +18,9 @@ import importlib
 import os
 import pkgutil
 import sys
+from collections.abc import Sequence
 from types import ModuleType
-from typing import NoReturn, Sequence
+from typing import NoReturn
 
 # Known subcommands and their one-line summaries, in the order --help lists them. A module added
 # to lander_tools/commands/ without an entry here is still found (with a generic summary).

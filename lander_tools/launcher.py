@@ -961,7 +961,8 @@ def reset_flight(f: LaunchedFlight) -> list[Stop]:
         res = _call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
         if not res.success:
             raise LaunchError(f"the sim refused the reset: {res.message}")
-        f.wait_for(lambda: sup.states > states0, STARTUP_TIMEOUT, "no state 1 from the simulator")
+        f.wait_for(lambda: sup.states > states0, STARTUP_TIMEOUT,  # noqa: B023 - called within this attempt
+                   "no state 1 from the simulator")
         try:
             f.wait_for(lambda: not sup.lockstep or sup.answered_first, ANSWER_TIMEOUT,
                        "no answer from the autopilot to state 1")

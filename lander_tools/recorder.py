@@ -34,9 +34,10 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 #: What ``lander fly`` records by default: everything the sim and the autopilot publish, plus
 #: the inputs (wind, demand altitude, throttle) and the clock.

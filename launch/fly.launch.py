@@ -11,12 +11,13 @@ restarts it from t = 0 once matched), the whole launch shuts down when the sim n
 recording ends (``lander fly`` also ends on landing or crash), and there is no ``--compose``
 (Python nodes cannot be loaded into a C++ component container).
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess, OpaqueFunction, RegisterEventHandler
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
+from launch import LaunchDescription
 
 ARGS = {
     "scene": ("hover", "scene name, alias or YAML path"),

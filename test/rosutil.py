@@ -13,8 +13,9 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 # Fast DDS maps a domain id to UDP ports 7400 + 250 * id; above 101 they collide with Linux's
 # ephemeral port range. 0 is what an unconfigured ROS process uses: tests never share it.
@@ -225,7 +226,7 @@ class ChildProcess:
         self.log.close()
         Path(self.log.name).unlink(missing_ok=True)
 
-    def __enter__(self) -> "ChildProcess":
+    def __enter__(self) -> ChildProcess:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -247,8 +248,9 @@ def param_value(v: object) -> Any:
 
 def sim_service_clients(node: Any) -> dict[str, Any]:
     """Clients of the simulator node's own services, by name (``load_scene``, ``reset``, ...)."""
-    from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
     from std_srvs.srv import SetBool, Trigger
+
+    from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 
     types = {"load_scene": LoadScene, "reset": Reset, "pause": Trigger, "resume": Trigger,
              "step": StepSimulation, "run_until": RunUntil, "deploy_parachute": Trigger,

@@ -4,7 +4,7 @@ See :mod:`.base` for the interface and :mod:`.registry` for names and third-part
 """
 from __future__ import annotations
 
-from .base import UPRIGHT_EULER, ControlOutput, Controller, ControllerError, Demand, DemandError
+from .base import UPRIGHT_EULER, Controller, ControllerError, ControlOutput, Demand, DemandError
 from .registry import ENTRY_POINT_GROUP, available_controllers, make_controller
 
 __all__ = [

@@ -9,7 +9,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from lander_sim.physics.constants import GM_MARS, MARS_RADIUS as _R
+from lander_sim.physics.constants import GM_MARS
+from lander_sim.physics.constants import MARS_RADIUS as _R
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 

@@ -114,7 +114,7 @@ class ControlOutput:
     saturated: bool
     unclipped: np.ndarray | None = field(default=None, repr=False)
     mode: str | None = None
-    requests: tuple["Request", ...] = ()
+    requests: tuple[Request, ...] = ()
 
 
 #: Request kinds a law may raise (:class:`Request`).
@@ -174,7 +174,7 @@ class Controller(ABC):
         self.vehicle = vehicle
         self.n_thrusters = vehicle.n_thrusters
 
-    def reset(self) -> None:
+    def reset(self) -> None:  # noqa: B027 - an optional hook, not abstract: stateless laws keep it
         """Forget internal state. Stateless laws have nothing to forget."""
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:

@@ -13,7 +13,7 @@ from lander_sim.physics.vehicle import Vehicle
 from ._params import matrix_param
 from .altitude import AltitudeController, IntegralAltitudeController
 from .attitude import EulerAttitudeController, QuaternionAttitudeController
-from .base import UPRIGHT_EULER, ControlOutput, Controller, Demand, saturate
+from .base import UPRIGHT_EULER, Controller, ControlOutput, Demand, saturate
 
 
 def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from lander_sim.physics.constants import GM_MARS, MARS_RADIUS
 from lander_sim.physics.dynamics import LanderDynamics
-from lander_sim.physics.models.base import Inputs
+from lander_sim.physics.models.base import ForceModel, Inputs
 from lander_sim.physics.models.gravity import InverseSquareGravity
 from lander_sim.physics.models.thrusters import Thrusters
 from lander_sim.physics.rotation import euler_rates_matrix
@@ -30,7 +30,7 @@ Model = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _dynamics(vehicle: Vehicle, gravity: bool) -> LanderDynamics:
-    models: list = [Thrusters(vehicle)]
+    models: list[ForceModel] = [Thrusters(vehicle)]
     if gravity:
         models.insert(0, InverseSquareGravity(GM_MARS))
     inputs = Inputs(throttles=np.zeros(vehicle.n_thrusters))

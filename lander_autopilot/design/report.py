@@ -55,7 +55,7 @@ def _model_section(
     d: GainDesign = place_poles(A, B, poles)
     out["placement"] = {
         "method": d.method,
-        "requested_poles": _poles_json(d.requested),
+        "requested_poles": _poles_json(d.requested) if d.requested is not None else None,
         "K": d.K.tolist(),
         "closed_loop_poles": _poles_json(d.poles),
     }

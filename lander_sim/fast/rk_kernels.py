@@ -30,7 +30,7 @@ import numpy as np
 
 from lander_sim.fast import lander_kernel as _k
 from lander_sim.fast.cache_guard import invalidate_if_changed
-from lander_sim.fast.lander_kernel import njit
+from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]  # numba's, or the no-numba stand-in
 from lander_sim.integrators.adaptive import DP_A, DP_C, DP_E
 
 # These kernels call lander_kernel's (and geometric's free rotor): recompile when those change.
@@ -522,7 +522,7 @@ def _make_geometric_steps():
 _GEOMETRIC = None
 
 
-def geometric_steps(*args):
+def geometric_steps(*args: Any) -> int:
     """``n`` compiled steps of the geometric splitting (built on first use: it compiles
     :func:`lander_sim.integrators.geometric.free_rotor_step` itself)."""
     global _GEOMETRIC

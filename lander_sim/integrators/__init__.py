@@ -23,7 +23,7 @@ ZXZ Euler-angle mode (eq 5-7 of the dynamics reference).
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 from lander_sim.integrators.adaptive import AdaptiveDormandPrince
 from lander_sim.integrators.base import Integrator, IntegratorError, check_dt

@@ -13,8 +13,9 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -322,7 +323,7 @@ class AdaptiveDormandPrince:
                         self._tmp if fine is None else fine, fine is not None)
         self.accepted += int(stats[0])
         self.rejected += int(stats[1])
-        dyn.evaluations += int(stats[2])  # type: ignore[attr-defined]
+        dyn.evaluations += int(stats[2])
         self.last_error, self.max_error = float(stats[3]), float(stats[4])
         if h == -math.inf:
             raise FloatingPointError(f"adaptive integrator exceeded {_MAX_INTERNAL_STEPS} internal steps in one call")

@@ -82,7 +82,7 @@ class DOP853:
                              cm.translation, *dop853_tableau(), stats)
         self.accepted += int(stats[0])
         self.rejected += int(stats[1])
-        dyn.evaluations += int(stats[2])  # type: ignore[attr-defined]
+        dyn.evaluations += int(stats[2])
         if status != 0:
             raise FloatingPointError("dop853: step size became too small")
         return True

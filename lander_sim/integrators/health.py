@@ -13,8 +13,8 @@ Invariants are only invariants for conservative scenes (no thrust, drag or torqu
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -112,7 +112,7 @@ class HealthMonitor:
                 self._e_err = _worst(self._e_err, abs(e - self._e0) / max(abs(self._e0), 1e-300))
         if self._momentum is not None:
             L = np.asarray(self._momentum(y), dtype=float)
-            if self._n == 0:
+            if self._L0 is None:
                 self._L0 = L.copy()
             else:
                 self._L_err = _worst(self._L_err, float(np.linalg.norm(L - self._L0)) / max(float(np.linalg.norm(self._L0)), 1e-300))

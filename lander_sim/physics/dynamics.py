@@ -8,7 +8,7 @@ costs nothing.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -71,7 +71,9 @@ class LanderDynamics:
             self._fixed_I: tuple[float, float, float] | None = None
         else:
             self._k2 = (0.0, 0.0, 0.0)
-            self._fixed_I = tuple(float(i) for i in vehicle.inertia_diag)  # type: ignore[union-attr]
+            assert vehicle.inertia_diag is not None  # Vehicle holds exactly one of the two
+            ix, iy, iz = (float(i) for i in vehicle.inertia_diag)
+            self._fixed_I = (ix, iy, iz)
 
     def model(self, name: str) -> ForceModel | None:
         """The model switched on under scene key ``name``, or None."""

@@ -104,7 +104,7 @@ class GustProcess:
 
     def get_state(self) -> tuple[dict[str, Any], np.ndarray, int]:
         """Everything that determines the future (generator state, current gust, seed)."""
-        return self.rng.bit_generator.state, self.gust_W.copy(), self.seed
+        return dict(self.rng.bit_generator.state), self.gust_W.copy(), self.seed
 
     def set_state(self, state: tuple[dict[str, Any], np.ndarray, int]) -> None:
         bits, gust, seed = state

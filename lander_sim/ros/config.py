@@ -8,9 +8,10 @@ reason that names the key, the value and what is allowed.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from lander_sim.yaml_file import read_yaml
 

@@ -19,7 +19,7 @@ not build new message objects on every tick.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

@@ -6,9 +6,10 @@ Every error is a :class:`SceneError` naming the file, the key path
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import yaml
@@ -195,6 +196,11 @@ class _Reader:
             raise self.fail(path, f"expected a list of {n} numbers, got {node!r}")
         return tuple(self.number(x, f"{path}[{i}]") for i, x in enumerate(node))
 
+    def vector3(self, node: Any, path: str) -> tuple[float, float, float]:
+        """A 3-vector (a world- or body-frame quantity: the frame is in ``path``)."""
+        x, y, z = self.vector(node, path, 3)
+        return x, y, z
+
     def boolean(self, node: Any, path: str) -> bool:
         if not isinstance(node, bool):
             raise self.fail(path, f"expected true or false, got {node!r}")
@@ -354,11 +360,12 @@ def _models(rd: _Reader, node: Any) -> Models:
     if _on(m, "constant_force"):
         f = rd.mapping(m["constant_force"], "models.constant_force", {"force_W", "point_B"}, ("force_W", "point_B"))
         out["constant_force"] = ConstantForceConfig(
-            rd.vector(f["force_W"], "models.constant_force.force_W"), rd.vector(f["point_B"], "models.constant_force.point_B")
+            rd.vector3(f["force_W"], "models.constant_force.force_W"), rd.vector3(f["point_B"], "models.constant_force.point_B")
         )
     if _on(m, "ground"):
         g = rd.mapping(m["ground"], "models.ground", {"safe_speed"})
-        out["ground"] = GroundConfig(**{k: rd.number(v, f"models.ground.{k}", 0.0, strict_lo=True) for k, v in g.items()})
+        out["ground"] = GroundConfig(safe_speed=rd.number(g.get("safe_speed", GroundConfig.safe_speed),
+                                                          "models.ground.safe_speed", 0.0, strict_lo=True))
     models = Models(**out)
     planet = models.gravity is not None and models.gravity.kind == "inverse-square"
     for key in ("atmosphere", "ground"):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ def disperse(
     """
     from dataclasses import replace
 
-    kw: dict = {"dry_mass": vehicle.dry_mass * dry_mass_scale}
+    kw: dict[str, Any] = {"dry_mass": vehicle.dry_mass * dry_mass_scale}
     if vehicle.gyration_sq is not None:
         kw["gyration_sq"] = tuple(k * inertia_scale for k in vehicle.gyration_sq)
     else:

@@ -207,14 +207,13 @@ class LiveBridge:
 
         state_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
         reliable = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rcl_interfaces.msg import ParameterEvent
-
         # The state is not taken per message by an executor (up to thousands a second at --speed 0,
         # ~26 us of Python each): a node of its own that no executor spins holds the latest state
         # (depth 1, best effort: DDS keeps it without Python), and a reader thread takes it at
         # twice the publishing rate cap. Every state is shown while they come slower than that.
         import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rcl_interfaces.msg import ParameterEvent
 
         self._state_node = rclpy.create_node(NODE_NAME + "_state", context=self.link.context,
                                              start_parameter_services=False)

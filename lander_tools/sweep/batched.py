@@ -190,8 +190,8 @@ class _Template:
     def values(self, spec: SweepSpec, case: FlightCase) -> dict[str, Any]:
         """The flight's packed values, as :func:`_pack` reads them from its Simulation: each is
         computed by the operation the loader / Simulation applies (see the module docstring)."""
-        from lander_sim.physics import rotation
         from lander_sim.fast import lander_kernel as lk
+        from lander_sim.physics import rotation
         from lander_sim.physics.state import ATT
         from lander_sim.physics.wind import GustConfig, GustProcess
         from lander_tools.sweep.case_scene import dispersed_initial_state, gust_seed

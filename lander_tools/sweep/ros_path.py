@@ -55,7 +55,6 @@ def plan_for_case(
 ) -> Any:
     """A :class:`lander_tools.launcher.FlightPlan` flying case ``index`` in lockstep, as fast as possible."""
     from lander_tools.launcher import Action, FlightPlan
-
     from lander_tools.sweep.case_scene import gust_seed
 
     scene0 = nominal_scene(spec)

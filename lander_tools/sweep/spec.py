@@ -20,9 +20,10 @@ All quantities are SI: metres, seconds, radians, kg; ``*_error`` dispersions are
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

@@ -7,8 +7,9 @@ A row is a flat dict made by :func:`lander_tools.sweep.flight.fly_case`: ``index
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 

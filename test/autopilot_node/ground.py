@@ -10,9 +10,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-import rosutil
-from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
-from lander_interfaces.srv import Reset, SwitchController
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import GetParameters, SetParametersAtomically
 from rclpy.executors import SingleThreadedExecutor
@@ -20,6 +17,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
+
+import rosutil
+from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
+from lander_interfaces.srv import Reset, SwitchController
 
 #: Generous: discovery and process start-up (imports of rclpy + python-control) on a loaded 2-core machine.
 START_TIMEOUT = 30.0

@@ -13,12 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from lander_interfaces.msg import FlightEvent
-from lander_interfaces.srv import Reset
 from std_srvs.srv import Trigger
 
 from lander_autopilot.controllers import Demand, make_controller
 from lander_autopilot.ros.convert import state_view
+from lander_interfaces.msg import FlightEvent
+from lander_interfaces.srv import Reset
 from lander_sim.physics.rotation import body_to_world
 from lander_sim.scenes import load_scene
 

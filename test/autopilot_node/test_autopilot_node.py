@@ -16,11 +16,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import yaml
-from lander_interfaces.msg import FlightEvent, LanderState
 
 from lander_autopilot.controllers import UPRIGHT_EULER, Demand, make_controller
 from lander_autopilot.ros.config import parse_controller_params
 from lander_autopilot.ros.convert import state_view
+from lander_interfaces.msg import FlightEvent, LanderState
 from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.ros.convert import fill_state

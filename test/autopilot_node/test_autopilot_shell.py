@@ -7,7 +7,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from lander_interfaces.msg import LanderState
 
 from lander_autopilot.controllers import ControlOutput, Demand, make_controller
 from lander_autopilot.ros.config import (
@@ -18,6 +17,7 @@ from lander_autopilot.ros.config import (
 )
 from lander_autopilot.ros.convert import StateError, state_view
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
+from lander_interfaces.msg import LanderState
 from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.ros.convert import fill_state

@@ -5,9 +5,9 @@ answering, so the simulator never waits out its timeout and never holds a stale 
 from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray
-from lander_interfaces.msg import FlightEvent
 
 from lander_autopilot.controllers import make_controller
+from lander_interfaces.msg import FlightEvent
 from lander_sim.scenes import load_scene
 
 from .ground import START_TIMEOUT, seconds, wait_for_graph

@@ -36,7 +36,7 @@ def _record_and_compare(name: str) -> tuple[int, int]:
     d_before = demand_array(before.altitude, before.attitude, before.omega_B)
     d_after = demand_array(after.altitude, after.attitude, after.omega_B)
     sats = compared = 0
-    for k in range(300):
+    for _ in range(300):
         t = sim.t
         st = sim.state()
         demand, d = (before, d_before) if t < 15.0 else (after, d_after)

@@ -15,8 +15,8 @@ from lander_autopilot.controllers import (
     available_controllers,
     make_controller,
 )
-from lander_autopilot.design.attitude import attitude_model
 from lander_autopilot.design.altitude import hover_throttle, vertical_thrust
+from lander_autopilot.design.attitude import attitude_model
 from lander_autopilot.design.gains import closed_loop_poles
 from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS

@@ -32,7 +32,7 @@ timeline:
 """
 
 
-def _start(tmp_path: Path) -> tuple[subprocess.Popen, "queue.Queue[str]", Path]:
+def _start(tmp_path: Path) -> tuple[subprocess.Popen, queue.Queue[str], Path]:
     (tmp_path / "long.yaml").write_text(SCRIPT)
     bag = tmp_path / "bag"
     proc = subprocess.Popen(
@@ -41,12 +41,12 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, "queue.Queue[str]", Path]:
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
         env=dict(os.environ, PYTHONPATH=str(REPO)),
     )
-    lines: "queue.Queue[str]" = queue.Queue()
+    lines: queue.Queue[str] = queue.Queue()
     threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
     return proc, lines, bag
 
 
-def _wait_line(lines: "queue.Queue[str]", pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
+def _wait_line(lines: queue.Queue[str], pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         try:

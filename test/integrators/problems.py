@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lander_sim.physics import rigid_body
-from lander_sim.physics.state import AttitudeMode, OMEGA_B, pack
+from lander_sim.physics.state import OMEGA_B, AttitudeMode, pack
 
 _ZERO3 = np.zeros(3)
 

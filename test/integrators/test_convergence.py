@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from lander_sim.integrators import make
+from lander_sim.integrators.reference import kepler_state, quat_distance, symmetric_top
 from lander_sim.physics import rotation
 
-from lander_sim.integrators.reference import kepler_state, quat_distance, symmetric_top
 from .problems import KeplerTop, state
 
 # A symmetric top (A = B = 2, C = 4 kg m^2, spin 2 rad/s) whose centre of mass flies an e = 0.3

@@ -7,10 +7,10 @@ samples every 50 ms until stopped (SIGINT), so the subscriber needs no timing as
 import sys
 
 import rclpy
+import samples
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-import samples
 from lander_interfaces import msg, srv
 
 

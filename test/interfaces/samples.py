@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 MESSAGES = ["ThrottleCommand", "LanderState", "FlightEvent", "AutopilotStatus"]
 SERVICES = ["LoadScene", "Reset", "StepSimulation", "RunUntil", "SwitchController"]

@@ -10,9 +10,8 @@ import uuid
 from pathlib import Path
 
 import pytest
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-
 import samples
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 HERE = Path(__file__).resolve().parent
 DISCOVERY_TIMEOUT_S = 20.0  # generous: the wait ends as soon as the data arrive

@@ -16,7 +16,6 @@ import json
 from pathlib import Path
 
 import pytest
-
 import samples
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -6,7 +6,6 @@ import re
 from pathlib import Path
 
 import rosutil
-
 from lander_tools.live.wsclient import FoxgloveClient as FoxgloveTestClient  # noqa: F401 - for the tests
 from lander_tools.live.wsclient import wait_until
 

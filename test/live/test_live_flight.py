@@ -294,7 +294,7 @@ def test_pause_step_resume_reset(live: dict[str, Any], capfd: pytest.CaptureFixt
     code, out, err = run(capfd, "step", "3")
     assert code == 0, err
     t1 = float(out.rsplit("sim_time ", 1)[1])
-    assert math.isclose(t1, t0 + 3 * DT, abs_tol=1e-9)  
+    assert math.isclose(t1, t0 + 3 * DT, abs_tol=1e-9)
     code, _, err = run(capfd, "step", "0")
     assert code == 1 and "steps" in err and len(err.strip().splitlines()) == 1, err
     code, out, err = run(capfd, "resume")

@@ -9,8 +9,18 @@ import pytest
 from lander_sim.physics import constants as c
 from lander_sim.physics import rotation
 from lander_sim.physics.models import (
-    Atmosphere, ChuteStatus, ConstantForce, EvalContext, Inputs, InverseSquareGravity, MeshDrag, Parachute,
-    SphereDrag, Thrusters, UniformGravity, sphere_mesh,
+    Atmosphere,
+    ChuteStatus,
+    ConstantForce,
+    EvalContext,
+    Inputs,
+    InverseSquareGravity,
+    MeshDrag,
+    Parachute,
+    SphereDrag,
+    Thrusters,
+    UniformGravity,
+    sphere_mesh,
 )
 from lander_sim.scenes import vehicles
 

@@ -101,13 +101,14 @@ class Watch:
     def __init__(self, context: Any, name: str = "reliability_watch") -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import Vector3Stamped
-        from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
-        from lander_interfaces.srv import SwitchController
         from rcl_interfaces.srv import GetParameters, SetParameters
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64
+
+        from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
+        from lander_interfaces.srv import SwitchController
 
         self.node = Node(name, context=context)
         self.executor = SingleThreadedExecutor(context=context)

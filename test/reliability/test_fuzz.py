@@ -11,9 +11,10 @@ from __future__ import annotations
 import math
 
 import pytest
-import rosutil
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
+import rosutil
 
 from .conftest import PROFILE
 from .stack import REPLY_TIMEOUT, START_TIMEOUT, Stack, Watch
@@ -96,6 +97,7 @@ def _stepped_state(watch: Watch):
 def test_fuzzed_throttle_and_wind_messages_are_counted_and_rejected_ones_change_nothing(
         stack: Stack, paused_sim: Watch) -> None:
     from geometry_msgs.msg import Vector3Stamped
+
     from lander_interfaces.msg import FlightEvent, ThrottleCommand
 
     watch = paused_sim
@@ -146,7 +148,6 @@ def test_fuzzed_throttle_and_wind_messages_are_counted_and_rejected_ones_change_
 
 def test_fuzzed_service_arguments_are_refused_counted_and_change_nothing(stack: Stack, paused_sim: Watch) -> None:
     from lander_interfaces.srv import LoadScene, RunUntil, StepSimulation
-
     from lander_sim.scenes import list_scenes
 
     watch = paused_sim
@@ -181,15 +182,16 @@ def test_refused_sim_parameter_changes_are_counted(stack: Stack, paused_sim: Wat
     """A refused parameter is bad input like any other: counted in rejected_total and announced by
     one INPUT_REJECTED event (docs/sim_node.md), whether our validation refused it (speed < 0) or
     rclpy's own checks did (a read-only parameter, an undeclared name)."""
-    from lander_interfaces.msg import FlightEvent
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
+
+    from lander_interfaces.msg import FlightEvent
 
     watch = paused_sim
     refused = [("speed", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)),
                ("scene", ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="hover")),
                ("no_such_parameter", ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True))]
-    for k, (name, value) in enumerate(refused, start=1):
+    for name, value in refused:
         rejected0, _ = _counts(watch)
         n_events = len(watch.events)
         res = watch.call("sim_set_parameters", SetParameters.Request(parameters=[Parameter(name=name, value=value)]))
@@ -251,7 +253,6 @@ def lone_autopilot(stack: Stack, watch: Watch) -> Watch:
 
 def _base_state():
     from lander_interfaces.msg import LanderState
-
     from lander_sim.ros import convert
     from lander_sim.ros.sim_adapter import build_simulation
 
@@ -281,10 +282,10 @@ def _status_count(watch: Watch) -> int:
 
 
 def test_fuzzed_states_demands_and_switches_to_the_autopilot(stack: Stack, lone_autopilot: Watch) -> None:
-    from lander_interfaces.srv import SwitchController
     from std_msgs.msg import Float64
 
     from lander_autopilot.controllers import available_controllers
+    from lander_interfaces.srv import SwitchController
 
     watch = lone_autopilot
     base = _base_state()

@@ -11,13 +11,12 @@ import subprocess
 import sys
 import time
 from collections import deque
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterator
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
-from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
 from rcl_interfaces.msg import Parameter
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
@@ -27,6 +26,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 import rosutil
+from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
 
 REPO = Path(__file__).resolve().parents[2]
 

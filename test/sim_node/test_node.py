@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,10 +17,10 @@ try:
 except ImportError as exc:  # fail loudly, never skip: these tests need the project venv
     raise ImportError("the node tests need ROS 2 from the project venv: run ./dev test test/sim_node") from exc
 
-from lander_interfaces.msg import FlightEvent
-from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from std_srvs.srv import SetBool
 
+from lander_interfaces.msg import FlightEvent
+from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from lander_sim.physics import constants as c
 from lander_sim.ros.pacing import Pacer
 from lander_sim.scenes import load_scene
@@ -422,7 +423,9 @@ def test_the_flight_ends_by_itself_at_end_time_with_the_counts_of_what_it_publis
         n_states, n_clocks, n_events = len(probe.states), len(probe.clocks), len(probe.events)
         assert probe.call("reset").success
         assert probe.call("resume").success
-        ended = lambda: [e for e in probe.events[n_events:] if e.kind == FlightEvent.FLIGHT_ENDED]
+        def ended() -> list[Any]:
+            return [e for e in probe.events[n_events:] if e.kind == FlightEvent.FLIGHT_ENDED]
+
         probe.wait_for(lambda: bool(ended()), 30.0, "FLIGHT_ENDED")
         end = FlightEnd.from_values(list(ended()[0].values))
         probe.wait_for(lambda: len(probe.states) - n_states >= end.counts["/lander/state"]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lander_sim.physics import rotation
-from lander_tools.sweep.dispersion import FlightCase
 from lander_tools.sweep.case_scene import flown_scene, nominal_scene
+from lander_tools.sweep.dispersion import FlightCase
 from lander_tools.sweep.flight import fly_case
 from lander_tools.sweep.metrics import settling_time as _settling_time
 from lander_tools.sweep.spec import parse_spec

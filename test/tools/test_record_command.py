@@ -25,9 +25,9 @@ def test_lander_record_writes_every_state_and_closes_when_the_watched_node_leave
     # The recorder subscribes to both topics once they exist (ours is the other state subscriber).
     ros_node.wait_for(lambda: n.count_subscribers("/lander/state") >= 2 and n.count_subscribers("/clock") >= 1,
                       30.0, "the recorder's subscriptions")
-    from lander_interfaces.srv import Reset
     from std_srvs.srv import Trigger
 
+    from lander_interfaces.srv import Reset
     from lander_sim.ros.flight_span import parse_matched
 
     # Seen in the graph is not yet matched by the sim's writers: a state published before the match

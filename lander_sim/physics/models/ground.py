@@ -19,7 +19,6 @@ import numpy as np
 
 from lander_sim.physics import constants as c
 
-
 #: Touchdown classes, best first.
 SAFE, HARD, CRASH = "safe", "hard", "crash"
 

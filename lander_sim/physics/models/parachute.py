@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,7 +45,7 @@ class Parachute:
 
     radius: float = c.PARACHUTE_RADIUS
     cd: float = c.PARACHUTE_DRAG_COEFFICIENT
-    attach_B: np.ndarray = None  # type: ignore[assignment]
+    attach_B: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.5 * c.LANDER_SIZE]))
     max_drag: float = c.PARACHUTE_MAX_DRAG
     max_speed: float = c.PARACHUTE_MAX_SPEED
     status: ChuteStatus = ChuteStatus.NOT_DEPLOYED
@@ -53,8 +53,6 @@ class Parachute:
     calls: int = 0
 
     def __post_init__(self) -> None:
-        if self.attach_B is None:
-            self.attach_B = np.array([0.0, 0.0, 0.5 * c.LANDER_SIZE])
         self._k = 0.5 * self.cd * math.pi * self.radius**2
 
     def _force_B(self, ctx: EvalContext) -> np.ndarray:

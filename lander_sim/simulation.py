@@ -10,6 +10,7 @@ import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ def build_dynamics(scene: Scene, inputs: Inputs) -> LanderDynamics:
         f = cfg.constant_force
         models.append(ConstantForce(np.array(f.force_W, dtype=float), np.array(f.point_B, dtype=float)))
     return LanderDynamics(
-        scene.vehicle, models, scene.attitude, scene.translation, inputs, atmosphere, planet_radius  # type: ignore[arg-type]
+        scene.vehicle, models, scene.attitude, scene.translation, inputs, atmosphere, planet_radius
     )
 
 
@@ -137,7 +138,7 @@ class Snapshot:
     fuel_out: bool
     integrator: Integrator
     mean_wind_W: np.ndarray | None = None
-    gusts: object = None
+    gusts: tuple[dict[str, Any], np.ndarray, int] | None = None  #: GustProcess.get_state()
     failed: np.ndarray | None = None
 
 
@@ -407,7 +408,7 @@ class Simulation:
                 self.parachute.status = ChuteStatus.LOST
                 self._emit(EventKind.PARACHUTE_LOST, f"parachute torn off by {drag:.0f} N of drag", {"drag": drag})
         if self.stabiliser:
-            stabilise(y, self.scene.attitude)  # type: ignore[arg-type]
+            stabilise(y, self.scene.attitude)
         self._check_gimbal()
 
     def _touchdown(self) -> None:
@@ -544,7 +545,7 @@ class Simulation:
         if snap.mean_wind_W is not None:
             self._mean_wind_W[:] = snap.mean_wind_W
         if self.gusts is not None and snap.gusts is not None:
-            self.gusts.set_state(snap.gusts)  # type: ignore[arg-type]
+            self.gusts.set_state(snap.gusts)
         if snap.failed is not None:
             self._failed[:] = snap.failed
         self._schedule_failures()

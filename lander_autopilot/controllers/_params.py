@@ -36,7 +36,7 @@ def poles_param(name: str, value: object, n: int) -> np.ndarray:
 
 def positive_param(name: str, value: object) -> float:
     try:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)  # type: ignore[arg-type]  # any object: float() itself is the check (caught below)
     except (TypeError, ValueError):
         raise ControllerError(f"{name}: expected a positive number, got {value!r}") from None
     if not np.isfinite(v) or v <= 0.0:

@@ -7,7 +7,7 @@ closed-loop poles stay as designed while fuel burns); ``s = 1`` for a fixed iner
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from lander_sim.physics.vehicle import Vehicle
 
 from ._params import matrix_param, poles_param, positive_param
 from .base import UPRIGHT_EULER, Controller, ControllerError, Demand, wrap_angle
+
+if TYPE_CHECKING:
+    from ..design.gains import GainDesign
 
 
 class _AttitudeLaw(Controller):
@@ -33,10 +36,10 @@ class _AttitudeLaw(Controller):
         self._K_given = K
         self.design_method = "given"
 
-    def _finish(self, design: object | None) -> None:
-        K = design.K if design is not None else self._K_given  # type: ignore[attr-defined]
+    def _finish(self, design: GainDesign | None) -> None:
+        K = design.K if design is not None else self._K_given
         if design is not None:
-            self.design_method = design.method  # type: ignore[attr-defined]
+            self.design_method = design.method
         self.K = matrix_param("K", K, (self.n_thrusters, 6))
         self._e = np.zeros(6)  # reused error buffer: no per-step allocation
 

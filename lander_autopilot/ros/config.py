@@ -112,7 +112,7 @@ class SceneAutopilot:
     """What a scene asks of the autopilot (its ``autopilot`` section, completed with the defaults)."""
 
     controller: str = DEFAULT_CONTROLLER
-    parameters: Mapping[str, Any] = None  # type: ignore[assignment]
+    parameters: Mapping[str, Any] = None  # type: ignore[assignment]  # None: {} (set in __post_init__; a dataclass default cannot be a dict)
     demand_altitude: float = DEFAULT_DEMAND_ALTITUDE
 
     def __post_init__(self) -> None:

@@ -122,7 +122,9 @@ def demand_velocity(msg) -> tuple[float, float]:
     v = msg.vector
     if v.z != 0.0:
         raise DemandError(f"demand velocity z = {v.z!r} m/s: must be 0 (the vertical follows the demand altitude)")
-    return Demand(velocity=(v.x, v.y)).velocity  # type: ignore[return-value]
+    velocity = Demand(velocity=(v.x, v.y)).velocity  # Demand's own checks (finite, magnitude)
+    assert velocity is not None
+    return velocity
 
 
 def fill_demand_status(status, demand, mode: str) -> None:

@@ -26,7 +26,7 @@ try:  # numba is optional: the numpy Dynamics path is the fallback.
 except ImportError:  # pragma: no cover - exercised only where numba is absent
     HAVE_NUMBA = False
 
-    def njit(*args, **kwargs):  # type: ignore[no-redef]
+    def njit(*args, **kwargs):  # type: ignore[no-redef]  # the stand-in for numba's, same name on purpose
         if args and callable(args[0]):
             return args[0]
         return lambda f: f

@@ -49,7 +49,7 @@ def options_of(name: str) -> tuple[str, ...]:
     factory = _factory(name)
     return tuple(
         f.name
-        for f in dataclasses.fields(factory)  # type: ignore[arg-type]
+        for f in dataclasses.fields(factory)  # type: ignore[arg-type]  # every registered factory is a dataclass
         if f.init and not f.name.startswith("_") and f.name not in ("name", "order", "accepted", "rejected", "last_error", "max_error")
     )
 

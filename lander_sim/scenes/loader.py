@@ -18,7 +18,7 @@ from lander_sim.integrators import REGISTRY as INTEGRATORS
 from lander_sim.physics import constants as c
 from lander_sim.physics import rotation
 from lander_sim.physics.models.ground import TouchdownLimits
-from lander_sim.physics.state import pack
+from lander_sim.physics.state import AttitudeMode, pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
@@ -132,7 +132,7 @@ class Scene:
     description: str
     vehicle: Vehicle
     initial_state: np.ndarray
-    attitude: str
+    attitude: AttitudeMode
     integrator: str
     dt: float
     models: Models
@@ -262,14 +262,14 @@ def _vehicle(rd: _Reader, node: Any) -> tuple[Vehicle, tuple[ThrusterFailure, ..
             vehicle = vehicles.disperse(vehicle, mass_s, inertia_s, thrust_s)
         return vehicle, _failures(rd, v.get("failures", []), n)
     v = rd.mapping(node, "vehicle", {"preset", "dry_mass", "fuel_capacity", "inertia", "size"}, ("dry_mass", "inertia"))
-    inertia = rd.vector(v["inertia"], "vehicle.inertia")
+    inertia = rd.vector3(v["inertia"], "vehicle.inertia")
     for i, x in enumerate(inertia):
         if x <= 0.0:
             raise rd.fail(f"vehicle.inertia[{i}]", f"expected a positive moment of inertia, got {x}")
     return Vehicle(
         dry_mass=rd.number(v["dry_mass"], "vehicle.dry_mass", 0.0, strict_lo=True),
         fuel_capacity=rd.number(v.get("fuel_capacity", 0.0), "vehicle.fuel_capacity", 0.0),
-        inertia_diag=inertia,  # type: ignore[arg-type]
+        inertia_diag=inertia,
         size=rd.number(v.get("size", 1.0), "vehicle.size", 0.0, strict_lo=True),
     ), ()
 
@@ -291,12 +291,12 @@ def _failures(rd: _Reader, node: Any, n: int) -> tuple[ThrusterFailure, ...]:
     return tuple(out)
 
 
-def _wind(rd: _Reader, top: dict[str, Any]) -> tuple[tuple[float, ...], GustConfig | None]:
+def _wind(rd: _Reader, top: dict[str, Any]) -> tuple[tuple[float, float, float], GustConfig | None]:
     """Mean wind (``wind_W`` or ``wind.mean_W``, world frame, m/s) and gusts (``wind.gust``)."""
     w = rd.mapping(top.get("wind"), "wind", {"mean_W", "gust"})
     if "mean_W" in w and "wind_W" in top:
         raise rd.fail("wind.mean_W", "the mean wind is given twice: keep wind.mean_W or the older wind_W, not both")
-    mean = rd.vector(w.get("mean_W", top.get("wind_W", [0, 0, 0])), "wind.mean_W" if "mean_W" in w else "wind_W")
+    mean = rd.vector3(w.get("mean_W", top.get("wind_W", [0, 0, 0])), "wind.mean_W" if "mean_W" in w else "wind_W")
     gust = None
     if w.get("gust") is not None:
         g = rd.mapping(w["gust"], "wind.gust", {"sigma", "tau", "seed"}, ("sigma", "tau"))
@@ -450,7 +450,8 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     if not isinstance(aliases_node, list):
         raise rd.fail("aliases", f"expected a list of strings, got {aliases_node!r}")
     aliases = tuple(str(rd.string(a, f"aliases[{k}]")) for k, a in enumerate(aliases_node))
-    mode = rd.choice(top.get("attitude_mode", "quaternion"), "attitude_mode", ("quaternion", "euler"))
+    mode: AttitudeMode = "euler" if rd.choice(top.get("attitude_mode", "quaternion"), "attitude_mode",
+                                               ("quaternion", "euler")) == "euler" else "quaternion"
     integ = rd.choice(top.get("integrator", "verlet"), "integrator", tuple(sorted(INTEGRATORS)))
     integ_options = _integrator_options(rd, integ, top.get("integrator_options"))
     vehicle, failures = _vehicle(rd, top["vehicle"])
@@ -479,7 +480,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
         stabiliser=rd.boolean(top.get("stabiliser", False), "stabiliser"),
         autopilot=autopilot,
         gimbal_threshold=rd.number(top.get("gimbal_threshold", 1e-3), "gimbal_threshold", 0.0, 1.0, strict_lo=True),
-        wind_W=mean_wind,  # type: ignore[arg-type]
+        wind_W=mean_wind,
         gust=gust,
         thruster_failures=failures,
         end_time=end_time,

@@ -40,12 +40,12 @@ def lander(thrusters: str = "standard", disabled: tuple[int, ...] = (), size: fl
                 enabled=i not in disabled,
             )
         )
-    k2 = tuple(g * size * size for g in c.LANDER_GYRATION_SQ)
+    kx, ky, kz = (g * size * size for g in c.LANDER_GYRATION_SQ)
     return Vehicle(
         dry_mass=c.LANDER_DRY_MASS,
         fuel_capacity=c.LANDER_FUEL_CAPACITY,
         thrusters=tuple(ths),
-        gyration_sq=k2,  # type: ignore[arg-type]
+        gyration_sq=(kx, ky, kz),
         size=size,
     )
 
@@ -70,8 +70,8 @@ def disperse(
     kw: dict[str, Any] = {"dry_mass": vehicle.dry_mass * dry_mass_scale}
     if vehicle.gyration_sq is not None:
         kw["gyration_sq"] = tuple(k * inertia_scale for k in vehicle.gyration_sq)
-    else:
-        kw["inertia_diag"] = tuple(i * inertia_scale for i in vehicle.inertia_diag)  # type: ignore[union-attr]
+    elif vehicle.inertia_diag is not None:  # a Vehicle holds exactly one of the two
+        kw["inertia_diag"] = tuple(i * inertia_scale for i in vehicle.inertia_diag)
     if thrust_scale is not None:
         kw["thrusters"] = tuple(replace(th, max_thrust=th.max_thrust * s) for th, s in zip(vehicle.thrusters, thrust_scale))
     return replace(vehicle, **kw)

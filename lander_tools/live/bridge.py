@@ -556,7 +556,7 @@ def _make_listener_base() -> type:
     return ServerListener
 
 
-class _Listener(_make_listener_base()):  # type: ignore[misc]
+class _Listener(_make_listener_base()):  # type: ignore[misc]  # base chosen at import: foxglove's, or object without it
     """foxglove's callbacks (server threads) -> the bridge."""
 
     def __init__(self, bridge: LiveBridge) -> None:

@@ -20,7 +20,7 @@ _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=
 class _Handler(BaseHTTPRequestHandler):
     def __init__(self, *args: object, ws_port: int, **kwargs: object) -> None:
         self.ws_port = ws_port
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]  # passed through as the server gave them
 
     def do_GET(self) -> None:
         path = self.path.split("?", 1)[0]

@@ -99,13 +99,13 @@ class RowTable(Sequence):
         keys: tuple[str, ...] | None = None
         for r in rows:
             k = tuple(r)
-            if k != keys and group:
-                self._add(_Block(keys, group))  # type: ignore[arg-type]
+            if keys is not None and k != keys:
+                self._add(_Block(keys, group))
                 group = []
             keys = k
             group.append(r)
-        if group:
-            self._add(_Block(keys, group))  # type: ignore[arg-type]
+        if keys is not None:
+            self._add(_Block(keys, group))
 
     def _add(self, block: _Block) -> None:
         if block.n:

@@ -32,7 +32,7 @@ def test_non_positive_step_is_an_error_naming_dt(name: str, dt: object) -> None:
     y = state(np.zeros(3), np.zeros(3), [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     before = y.copy()
     with pytest.raises(ValueError, match="time step dt must be a positive"):
-        make(name).step(dyn, 0.0, y, dt)  # type: ignore[arg-type]
+        make(name).step(dyn, 0.0, y, dt)  # type: ignore[arg-type]  # a bad dt is the test
     assert np.array_equal(y, before)
 
 

@@ -49,7 +49,7 @@ def test_bad_wind_stabiliser_and_missing_parachute_are_rejected():
     with pytest.raises(InputError, match=r"wind must be 3"):
         sim.set_wind([1.0, 2.0])
     with pytest.raises(InputError, match=r"stabiliser must be true or false, got 'yes'"):
-        sim.set_stabiliser("yes")  # type: ignore[arg-type]
+        sim.set_stabiliser("yes")  # type: ignore[arg-type]  # the wrong type is the test
     with pytest.raises(InputError, match=r"has no parachute"):
         sim.deploy_parachute()
     assert sim.rejected == {"throttles": 0, "wind": 2, "parachute": 1, "stabiliser": 1}

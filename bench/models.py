@@ -57,7 +57,7 @@ def scenes(quick: bool) -> list[dict]:
                 sim.step()
             return m
         rows.append(dict(scene=info.name, integrator=sc.integrator, attitude=sc.attitude,
-                         models=", ".join(k for k, v in vars(sc.models).items() if v) or "(none)",
+                         models=", ".join(sc.models.configs) or "(none)",
                          steps_per_s=_rate(step, n)))
     return rows
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -20,64 +20,40 @@ from lander_sim.integrators.base import Integrator
 from lander_sim.physics import rotation
 from lander_sim.physics.dynamics import LanderDynamics
 from lander_sim.physics.events import Event, EventKind, Phase
-from lander_sim.physics.models import (
-    Atmosphere,
-    ChuteStatus,
-    ConstantForce,
-    ForceModel,
-    Ground,
-    Inputs,
-    InverseSquareGravity,
-    MeshDrag,
-    Parachute,
-    SphereDrag,
-    Thrusters,
-    UniformGravity,
-    sphere_mesh,
-)
+from lander_sim.physics.models import Atmosphere, ChuteStatus, ForceModel, Ground, Inputs, Parachute
+from lander_sim.physics.models.base import BuildContext
 from lander_sim.physics.models.stabiliser import stabilise
+from lander_sim.physics.models.table import MODELS
 from lander_sim.physics.rigid_body import kinetic_energy
 from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W, StateView
 from lander_sim.physics.wind import GustProcess, WindError
 from lander_sim.scenes import Scene
 
-__all__ = ["Derived", "Event", "EventKind", "Phase", "Simulation", "Snapshot", "build_dynamics"]
+__all__ = ["Derived", "Event", "EventKind", "Phase", "Simulation", "Snapshot", "build_dynamics", "compose"]
+
+
+def compose(scene: Scene, inputs: Inputs) -> tuple[LanderDynamics, Ground | None]:
+    """The models a scene switches on, built through the models table
+    (:data:`lander_sim.physics.models.table.MODELS`, in its order; others are not built at all),
+    composed into a :class:`LanderDynamics`; and the ground, if the scene has one."""
+    ctx = BuildContext(vehicle=scene.vehicle)
+    forces: list[ForceModel] = []
+    atmosphere: Atmosphere | None = None
+    ground: Ground | None = None
+    for key, cfg in scene.models.configs.items():
+        built = MODELS[key].build(cfg, ctx)
+        forces.extend(built.forces)
+        atmosphere = built.atmosphere or atmosphere
+        ground = built.ground or ground
+        if built.planet_radius is not None:
+            ctx = replace(ctx, planet_radius=built.planet_radius)
+    dyn = LanderDynamics(scene.vehicle, forces, scene.attitude, scene.translation, inputs, atmosphere, ctx.planet_radius)
+    return dyn, ground
 
 
 def build_dynamics(scene: Scene, inputs: Inputs) -> LanderDynamics:
-    """The models a scene switches on, composed into a :class:`LanderDynamics` (others are not built at all)."""
-    cfg = scene.models
-    models: list[ForceModel] = []
-    planet_radius = 0.0
-    if cfg.gravity is not None:
-        if cfg.gravity.kind == "inverse-square":
-            models.append(InverseSquareGravity(gm=cfg.gravity.gm))
-            planet_radius = cfg.gravity.radius
-        else:
-            models.append(UniformGravity(g_W=np.array(cfg.gravity.g_W, dtype=float)))
-    atmosphere = None
-    if cfg.atmosphere is not None:
-        a = cfg.atmosphere
-        atmosphere = Atmosphere(a.surface_density, a.scale_height, a.exosphere)
-    if cfg.drag is not None:
-        d = cfg.drag
-        if d.kind == "sphere":
-            models.append(SphereDrag(cd=d.cd, area=d.area))
-        else:
-            c_B, n_B, areas = sphere_mesh(d.radius * scene.vehicle.size, np.array(d.centre_B), d.n_lat, d.n_lon)
-            models.append(MeshDrag(c_B, n_B, areas, skin_friction=d.skin_friction))
-    if cfg.parachute is not None:
-        p = cfg.parachute
-        attach = np.array(p.attach_B if p.attach_B is not None else (0.0, 0.0, 0.5 * scene.vehicle.size))
-        models.append(Parachute(radius=p.radius, cd=p.cd, attach_B=attach, max_drag=p.max_drag, max_speed=p.max_speed))
-    if cfg.thrusters:
-        models.append(Thrusters(scene.vehicle))
-    if cfg.constant_force is not None:
-        f = cfg.constant_force
-        models.append(ConstantForce(np.array(f.force_W, dtype=float), np.array(f.point_B, dtype=float)))
-    return LanderDynamics(
-        scene.vehicle, models, scene.attitude, scene.translation, inputs, atmosphere, planet_radius
-    )
+    """The dynamics of :func:`compose` alone."""
+    return compose(scene, inputs)[0]
 
 
 @dataclass(frozen=True)
@@ -186,11 +162,7 @@ class Simulation:
         self.gusts: GustProcess | None = GustProcess(scene.gust, self.dt) if scene.gust is not None else None
         self._failed = np.zeros(scene.vehicle.n_thrusters, dtype=bool)
         self._failures: list[tuple[int, int]] = []
-        self.dynamics = build_dynamics(scene, self.inputs)
-        self.ground: Ground | None = None
-        if scene.models.ground is not None and scene.models.gravity is not None:
-            gc = scene.models.ground
-            self.ground = Ground(scene.models.gravity.radius, scene.vehicle.size, gc.safe_speed, limits=gc.limits)
+        self.dynamics, self.ground = compose(scene, self.inputs)
         chute = self.dynamics.model("parachute")
         self.parachute: Parachute | None = chute if isinstance(chute, Parachute) else None
         self.rejected: dict[str, int] = {"throttles": 0, "wind": 0, "parachute": 0, "stabiliser": 0}

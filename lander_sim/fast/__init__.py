@@ -16,6 +16,9 @@ from lander_sim.fast.lander_kernel import HAVE_NUMBA
 
 __all__ = ["HAVE_NUMBA", "FastLander", "supports", "unsupported_reason"]
 
+#: Scene models (keys of lander_sim.physics.models.table.MODELS) the kernel has (ground: the caller's).
+_SUPPORTED = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "ground"}
+
 
 def unsupported_reason(scene: Any, integrator: str | None = None) -> str | None:
     """Why the fast path cannot run ``scene`` (None if it can). ``integrator`` overrides the scene's."""
@@ -26,12 +29,14 @@ def unsupported_reason(scene: Any, integrator: str | None = None) -> str | None:
         return "Euler-angle attitude (fast path is quaternion only)"
     if not scene.translation:
         return "fixed pivot"
-    if m.gravity is None or m.gravity.kind != "inverse-square":
+    other = sorted(set(m.configs) - _SUPPORTED)
+    if other:
+        return f"model(s) {', '.join(other)} (fast path: {', '.join(sorted(_SUPPORTED))})"
+    gravity, drag = m.get("gravity"), m.get("drag")
+    if gravity is None or gravity.kind != "inverse-square":
         return "gravity must be inverse-square"
-    if m.drag is not None and m.drag.kind != "sphere":
-        return f"drag kind {m.drag.kind!r} (fast path has sphere drag only)"
-    if m.constant_force is not None:
-        return "constant_force model"
+    if drag is not None and drag.kind != "sphere":
+        return f"drag kind {drag.kind!r} (fast path has sphere drag only)"
     if scene.vehicle.gyration_sq is None and scene.vehicle.inertia_diag is None:
         return "vehicle without inertia"
     return None

@@ -179,8 +179,7 @@ class SimAdapter:
 
 def _is_conservative(scene: Scene) -> bool:
     """True when every force model the scene switches on conserves energy (no air, no ground)."""
-    m = scene.models
-    return m.atmosphere is None and m.drag is None and m.parachute is None and m.ground is None
+    return not {"atmosphere", "drag", "parachute", "ground"} & set(scene.models.configs)
 
 
 def build_simulation(

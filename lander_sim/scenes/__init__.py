@@ -1,12 +1,9 @@
-"""Scenes: named YAML files that switch models on, set the vehicle, initial state and integrator."""
+"""Scenes: named YAML files that switch models on, set the vehicle, initial state and integrator.
+
+Each model's config and the parsing of its section are the model module's own
+(:mod:`lander_sim.physics.models.table`)."""
 from lander_sim.scenes.loader import (
-    AtmosphereConfig,
-    ConstantForceConfig,
-    DragConfig,
-    GravityConfig,
-    GroundConfig,
     Models,
-    ParachuteConfig,
     Scene,
     SceneError,
     SceneInfo,
@@ -18,6 +15,5 @@ from lander_sim.scenes.loader import (
 )
 
 __all__ = [
-    "AtmosphereConfig", "ConstantForceConfig", "DragConfig", "GravityConfig", "GroundConfig", "Models",
-    "ParachuteConfig", "Scene", "SceneError", "SceneInfo", "ThrusterFailure", "list_scenes", "load_file", "load_scene", "parse_scene",
+    "Models", "Scene", "SceneError", "SceneInfo", "ThrusterFailure", "list_scenes", "load_file", "load_scene", "parse_scene",
 ]

@@ -18,11 +18,12 @@ from lander_sim.integrators import REGISTRY as INTEGRATORS
 from lander_sim.physics import constants as c
 from lander_sim.physics import rotation
 from lander_sim.physics.models.ground import TouchdownLimits
+from lander_sim.physics.models.table import MODELS
 from lander_sim.physics.state import AttitudeMode, pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
-from lander_sim.yaml_file import read_yaml
+from lander_sim.yaml_file import Reader, read_yaml
 
 SCENE_DIR = Path(__file__).resolve().parent
 
@@ -42,60 +43,6 @@ class SceneInfo:
 
 
 @dataclass(frozen=True)
-class GravityConfig:
-    """``kind``: ``inverse-square`` (``gm`` [m^3/s^2], planet of ``radius`` [m]) or ``uniform`` (``g_W`` [m/s^2])."""
-
-    kind: str
-    gm: float = c.GM_MARS
-    radius: float = c.MARS_RADIUS
-    g_W: tuple[float, float, float] = (0.0, 0.0, -c.SURFACE_GRAVITY)
-
-
-@dataclass(frozen=True)
-class AtmosphereConfig:
-    surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY
-    scale_height: float = c.ATMOSPHERE_SCALE_HEIGHT
-    exosphere: float = c.EXOSPHERE_ALTITUDE
-
-
-@dataclass(frozen=True)
-class DragConfig:
-    """``kind``: ``sphere`` (``cd``, ``area``) or ``mesh`` (sphere mesh ``radius``, ``centre_B``, ``n_lat`` x ``n_lon``, ``skin_friction``)."""
-
-    kind: str
-    cd: float = c.SPHERE_DRAG_COEFFICIENT
-    area: float = c.SPHERE_DRAG_AREA
-    radius: float = c.LANDER_SIZE
-    centre_B: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    n_lat: int = 12
-    n_lon: int = 24
-    skin_friction: float = 0.005
-
-
-@dataclass(frozen=True)
-class ParachuteConfig:
-    radius: float = c.PARACHUTE_RADIUS
-    cd: float = c.PARACHUTE_DRAG_COEFFICIENT
-    attach_B: tuple[float, float, float] | None = None  # None: (0, 0, L/2)
-    max_drag: float = c.PARACHUTE_MAX_DRAG
-    max_speed: float = c.PARACHUTE_MAX_SPEED
-
-
-@dataclass(frozen=True)
-class ConstantForceConfig:
-    force_W: tuple[float, float, float]
-    point_B: tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class GroundConfig:
-    """``safe_speed`` [m/s]; ``limits``: the scene's ``touchdown`` section (None: from ``safe_speed``)."""
-
-    safe_speed: float = 1.0
-    limits: TouchdownLimits | None = None
-
-
-@dataclass(frozen=True)
 class ThrusterFailure:
     """Thruster ``thruster`` (index into the vehicle's thrusters) stops for good at sim time ``time`` [s]:
     from the first step starting at or after ``time`` it produces nothing and burns nothing."""
@@ -106,15 +53,22 @@ class ThrusterFailure:
 
 @dataclass(frozen=True)
 class Models:
-    """Which models are on (None = off) and their parameters."""
+    """The models a scene switches on: each one's config (its module's dataclass) by its key
+    under ``models:``, in the order of :data:`lander_sim.physics.models.table.MODELS`. A model
+    that is off is absent."""
 
-    gravity: GravityConfig | None = None
-    atmosphere: AtmosphereConfig | None = None
-    drag: DragConfig | None = None
-    parachute: ParachuteConfig | None = None
-    thrusters: bool = False
-    constant_force: ConstantForceConfig | None = None
-    ground: GroundConfig | None = None
+    configs: Mapping[str, Any] = field(default_factory=dict)
+
+    def get(self, key: str) -> Any | None:
+        """The config of model ``key`` (e.g. ``"gravity"``), or None when it is off."""
+        return self.configs.get(key)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.configs
+
+    def with_config(self, key: str, config: Any) -> Models:
+        """A copy with model ``key``'s config replaced (the loader puts ``touchdown`` into the ground's)."""
+        return Models({k: (config if k == key else v) for k, v in self.configs.items()})
 
 
 @dataclass(frozen=True)
@@ -152,83 +106,17 @@ class Scene:
 # --- validation helpers ------------------------------------------------------
 
 
-class _Reader:
-    """Small typed accessors whose errors name ``file: key.path`` and the expectation."""
-
-    def __init__(self, file: str) -> None:
-        self.file = file
-
-    def fail(self, path: str, msg: str) -> SceneError:
-        return SceneError(f"{self.file}: {path}: {msg}")
-
-    def mapping(self, node: Any, path: str, allowed: set[str], required: tuple[str, ...] = ()) -> dict[str, Any]:
-        if node is None:
-            node = {}
-        if not isinstance(node, dict):
-            raise self.fail(path, f"expected a mapping, got {type(node).__name__} {node!r}")
-        for k in node:
-            if k not in allowed:
-                raise self.fail(f"{path}.{k}" if path else str(k), f"unknown key; allowed keys: {', '.join(sorted(allowed))}")
-        for k in required:
-            if k not in node:
-                raise self.fail(f"{path}.{k}" if path else k, "missing required key")
-        return node
-
-    def number(self, node: Any, path: str, lo: float | None = None, hi: float | None = None, strict_lo: bool = False) -> float:
-        if isinstance(node, bool) or not isinstance(node, (int, float)):
-            raise self.fail(path, f"expected a number, got {node!r}")
-        x = float(node)
-        if not math.isfinite(x):
-            raise self.fail(path, f"expected a finite number, got {node!r}")
-        if lo is not None and (x < lo or (strict_lo and x == lo)):
-            raise self.fail(path, f"expected a number {'>' if strict_lo else '>='} {lo}, got {x}")
-        if hi is not None and x > hi:
-            raise self.fail(path, f"expected a number <= {hi}, got {x}")
-        return x
-
-    def integer(self, node: Any, path: str, lo: int) -> int:
-        if isinstance(node, bool) or not isinstance(node, int) or node < lo:
-            raise self.fail(path, f"expected an integer >= {lo}, got {node!r}")
-        return node
-
-    def vector(self, node: Any, path: str, n: int = 3) -> tuple[float, ...]:
-        if not isinstance(node, list) or len(node) != n:
-            raise self.fail(path, f"expected a list of {n} numbers, got {node!r}")
-        return tuple(self.number(x, f"{path}[{i}]") for i, x in enumerate(node))
-
-    def vector3(self, node: Any, path: str) -> tuple[float, float, float]:
-        """A 3-vector (a world- or body-frame quantity: the frame is in ``path``)."""
-        x, y, z = self.vector(node, path, 3)
-        return x, y, z
-
-    def boolean(self, node: Any, path: str) -> bool:
-        if not isinstance(node, bool):
-            raise self.fail(path, f"expected true or false, got {node!r}")
-        return node
-
-    def string(self, node: Any, path: str) -> str:
-        if not isinstance(node, str):
-            raise self.fail(path, f"expected a string, got {node!r}")
-        return node
-
-    def choice(self, node: Any, path: str, choices: tuple[str, ...]) -> str:
-        if node not in choices:
-            raise self.fail(path, f"expected one of {', '.join(choices)}, got {node!r}")
-        return node
-
-
 _TOP = {
     "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "integrator_options", "dt",
     "fixed_pivot",
     "models", "stabiliser", "gimbal_threshold", "wind_W", "wind", "autopilot", "end", "touchdown",
 }
-_MODELS = {"gravity", "atmosphere", "drag", "parachute", "thrusters", "constant_force", "ground"}
 
 
 _PRESET_KEYS = {"preset", "thrusters", "disabled", "size", "dry_mass_scale", "inertia_scale", "thrust_scale", "failures"}
 
 
-def _vehicle(rd: _Reader, node: Any) -> tuple[Vehicle, tuple[ThrusterFailure, ...]]:
+def _vehicle(rd: Reader, node: Any) -> tuple[Vehicle, tuple[ThrusterFailure, ...]]:
     """The vehicle and its scheduled thruster failures.
 
     Preset form: ``{preset: lander, thrusters: canted, disabled: [..], size: L,
@@ -274,7 +162,7 @@ def _vehicle(rd: _Reader, node: Any) -> tuple[Vehicle, tuple[ThrusterFailure, ..
     ), ()
 
 
-def _failures(rd: _Reader, node: Any, n: int) -> tuple[ThrusterFailure, ...]:
+def _failures(rd: Reader, node: Any, n: int) -> tuple[ThrusterFailure, ...]:
     """``vehicle.failures: [{thruster: i, time: t}, ...]``: each thruster at most once, ``0 <= i < n``, ``t >= 0`` s."""
     if not isinstance(node, list):
         raise rd.fail("vehicle.failures", f"expected a list of {{thruster: index, time: seconds}}, got {node!r}")
@@ -291,7 +179,7 @@ def _failures(rd: _Reader, node: Any, n: int) -> tuple[ThrusterFailure, ...]:
     return tuple(out)
 
 
-def _wind(rd: _Reader, top: dict[str, Any]) -> tuple[tuple[float, float, float], GustConfig | None]:
+def _wind(rd: Reader, top: dict[str, Any]) -> tuple[tuple[float, float, float], GustConfig | None]:
     """Mean wind (``wind_W`` or ``wind.mean_W``, world frame, m/s) and gusts (``wind.gust``)."""
     w = rd.mapping(top.get("wind"), "wind", {"mean_W", "gust"})
     if "mean_W" in w and "wind_W" in top:
@@ -314,73 +202,22 @@ def _on(m: dict[str, Any], key: str) -> bool:
     return m.get(key) not in (None, False)
 
 
-def _models(rd: _Reader, node: Any) -> Models:
-    m = rd.mapping(node, "models", _MODELS)
-    out: dict[str, Any] = {}
-    if _on(m, "gravity"):
-        g = rd.mapping(m["gravity"], "models.gravity", {"kind", "gm", "radius", "g_W"}, ("kind",))
-        kind = rd.choice(g["kind"], "models.gravity.kind", ("inverse-square", "uniform"))
-        kw: dict[str, Any] = {}
-        if "gm" in g:
-            kw["gm"] = rd.number(g["gm"], "models.gravity.gm", 0.0, strict_lo=True)
-        if "radius" in g:
-            kw["radius"] = rd.number(g["radius"], "models.gravity.radius", 0.0, strict_lo=True)
-        if "g_W" in g:
-            kw["g_W"] = rd.vector(g["g_W"], "models.gravity.g_W")
-        out["gravity"] = GravityConfig(kind=kind, **kw)
-    if _on(m, "atmosphere"):
-        a = rd.mapping(m["atmosphere"], "models.atmosphere", {"surface_density", "scale_height", "exosphere"})
-        out["atmosphere"] = AtmosphereConfig(
-            **{k: rd.number(v, f"models.atmosphere.{k}", 0.0, strict_lo=True) for k, v in a.items()}
-        )
-    if _on(m, "drag"):
-        d = rd.mapping(m["drag"], "models.drag", {"kind", "cd", "area", "radius", "centre_B", "n_lat", "n_lon", "skin_friction"}, ("kind",))
-        kind = rd.choice(d["kind"], "models.drag.kind", ("sphere", "mesh"))
-        allowed = {"kind", "cd", "area"} if kind == "sphere" else {"kind", "radius", "centre_B", "n_lat", "n_lon", "skin_friction"}
-        rd.mapping(d, "models.drag", allowed)
-        kw = {}
-        for k in ("cd", "area", "radius", "skin_friction"):
-            if k in d:
-                kw[k] = rd.number(d[k], f"models.drag.{k}", 0.0)
-        for k in ("n_lat", "n_lon"):
-            if k in d:
-                kw[k] = rd.integer(d[k], f"models.drag.{k}", 2)
-        if "centre_B" in d:
-            kw["centre_B"] = rd.vector(d["centre_B"], "models.drag.centre_B")
-        out["drag"] = DragConfig(kind=kind, **kw)
-    if _on(m, "parachute"):
-        p = rd.mapping(m["parachute"], "models.parachute", {"radius", "cd", "attach_B", "max_drag", "max_speed"})
-        kw = {k: rd.number(v, f"models.parachute.{k}", 0.0, strict_lo=True) for k, v in p.items() if k != "attach_B"}
-        if "attach_B" in p:
-            kw["attach_B"] = rd.vector(p["attach_B"], "models.parachute.attach_B")
-        out["parachute"] = ParachuteConfig(**kw)
-    if _on(m, "thrusters"):
-        rd.mapping(m["thrusters"], "models.thrusters", set())
-        out["thrusters"] = True
-    if _on(m, "constant_force"):
-        f = rd.mapping(m["constant_force"], "models.constant_force", {"force_W", "point_B"}, ("force_W", "point_B"))
-        out["constant_force"] = ConstantForceConfig(
-            rd.vector3(f["force_W"], "models.constant_force.force_W"), rd.vector3(f["point_B"], "models.constant_force.point_B")
-        )
-    if _on(m, "ground"):
-        g = rd.mapping(m["ground"], "models.ground", {"safe_speed"})
-        out["ground"] = GroundConfig(safe_speed=rd.number(g.get("safe_speed", GroundConfig.safe_speed),
-                                                          "models.ground.safe_speed", 0.0, strict_lo=True))
-    models = Models(**out)
-    planet = models.gravity is not None and models.gravity.kind == "inverse-square"
-    for key in ("atmosphere", "ground"):
-        if getattr(models, key) is not None and not planet:
-            raise rd.fail(f"models.{key}", "needs a planet: expected models.gravity.kind: inverse-square")
-    for key in ("drag", "parachute"):
-        if getattr(models, key) is not None and models.atmosphere is None:
-            raise rd.fail(f"models.{key}", "needs air: expected models.atmosphere to be switched on")
-    return models
+def _models(rd: Reader, node: Any) -> Models:
+    """``models:`` through the models table: each switched-on section parsed by its own module,
+    then each model's needs checked against the others switched on."""
+    m = rd.mapping(node, "models", set(MODELS))
+    on = {key: entry.parse(rd, m[key], f"models.{key}") for key, entry in MODELS.items() if _on(m, key)}
+    for key in on:
+        why = MODELS[key].needs(on)
+        if why is not None:
+            raise rd.fail(f"models.{key}", why)
+    return Models(on)
 
 
 _TOUCHDOWN_KEYS = ("descent_rate", "ground_speed", "tilt_deg")
 
 
-def _touchdown(rd: _Reader, node: Any, models: Models) -> Models:
+def _touchdown(rd: Reader, node: Any, models: Models) -> Models:
     """``touchdown: {safe: {descent_rate, ground_speed, tilt_deg}, crash: {...}}`` (m/s, m/s, degrees).
 
     Missing safe limits default to ``models.ground.safe_speed`` (the original's 1 m/s) and no
@@ -388,10 +225,11 @@ def _touchdown(rd: _Reader, node: Any, models: Models) -> Models:
     """
     if node is None:
         return models
-    if models.ground is None:
+    ground = models.get("ground")
+    if ground is None:
         raise rd.fail("touchdown", "needs the ground: expected models.ground to be switched on")
     t = rd.mapping(node, "touchdown", {"safe", "crash"})
-    v = models.ground.safe_speed
+    v = ground.safe_speed
     safe = dict(zip(_TOUCHDOWN_KEYS, (v, v, 180.0)))
     for k, x in rd.mapping(t.get("safe"), "touchdown.safe", set(_TOUCHDOWN_KEYS)).items():
         safe[k] = rd.number(x, f"touchdown.safe.{k}", 0.0, 180.0 if k == "tilt_deg" else None, strict_lo=True)
@@ -404,10 +242,10 @@ def _touchdown(rd: _Reader, node: Any, models: Models) -> Models:
     )
     from dataclasses import replace
 
-    return replace(models, ground=replace(models.ground, limits=limits))
+    return models.with_config("ground", replace(ground, limits=limits))
 
 
-def _initial(rd: _Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
+def _initial(rd: Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
     i = rd.mapping(node, "initial", {"position_W", "velocity_W", "attitude", "omega_B", "fuel"})
     r = rd.vector(i.get("position_W", [0, 0, 0]), "initial.position_W")
     v = rd.vector(i.get("velocity_W", [0, 0, 0]), "initial.velocity_W")
@@ -428,7 +266,7 @@ def _initial(rd: _Reader, node: Any, vehicle: Vehicle, mode: str) -> np.ndarray:
     return pack(np.array(r), np.array(v), a, np.array(w), fuel)
 
 
-def _integrator_options(rd: _Reader, integ: str, node: Any) -> dict[str, Any]:
+def _integrator_options(rd: Reader, integ: str, node: Any) -> dict[str, Any]:
     """``integrator_options``: keyword options of the chosen method (e.g. ``rtol``/``atol`` of ``adaptive``)."""
     from lander_sim.integrators import make, options_of
 
@@ -443,7 +281,7 @@ def _integrator_options(rd: _Reader, integ: str, node: Any) -> dict[str, Any]:
 
 def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     """Validate already-parsed YAML ``data``; ``file`` names it in errors."""
-    rd = _Reader(file)
+    rd = Reader(file, SceneError)
     top = rd.mapping(data, "", _TOP, ("vehicle", "initial", "dt"))
     name = rd.string(top.get("name", Path(file).stem), "name")
     aliases_node = top.get("aliases", [])
@@ -456,7 +294,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     integ_options = _integrator_options(rd, integ, top.get("integrator_options"))
     vehicle, failures = _vehicle(rd, top["vehicle"])
     models = _touchdown(rd, top.get("touchdown"), _models(rd, top.get("models")))
-    if models.thrusters and vehicle.n_thrusters == 0:
+    if "thrusters" in models and vehicle.n_thrusters == 0:
         raise rd.fail("models.thrusters", "the vehicle has no thrusters: use vehicle.preset: lander")
     autopilot = top.get("autopilot")
     if autopilot is not None:

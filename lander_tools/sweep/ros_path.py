@@ -174,8 +174,8 @@ class RosCheck:
 
     def summary(self) -> str:
         n = len(self.ros_rows)
-        ros_fps = n / self.ros_wall if self.ros_wall > 0 else math.nan
-        core_fps = n / self.core_wall if self.core_wall > 0 else math.nan
+        ros_fps = n / self.ros_wall if self.ros_wall > 0 and n else math.nan
+        core_fps = n / self.core_wall if self.core_wall > 0 and n else math.nan
         head = (
             f"through ROS: {n} flight(s) in {self.ros_wall:.1f} s = {ros_fps:.3f} flights/s "
             f"(core-only, same flights, 1 process: {core_fps:.2f} flights/s, {core_fps / ros_fps:.0f}x faster); "

@@ -5,6 +5,8 @@ import math
 from dataclasses import dataclass
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.base import BuildContext, Built, ModelEntry, needs_planet
+from lander_sim.yaml_file import Reader
 
 
 @dataclass(frozen=True)
@@ -30,3 +32,16 @@ class Atmosphere:
         if altitude > self.exosphere:
             return 0.0
         return self.surface_density * math.exp(-altitude / self.scale_height)
+
+
+def parse(rd: Reader, node: object, path: str) -> Atmosphere:
+    """Scene section ``models.atmosphere`` (the fields of :class:`Atmosphere`, each > 0)."""
+    a = rd.mapping(node, path, {"surface_density", "scale_height", "exosphere"})
+    return Atmosphere(**{k: rd.number(v, f"{path}.{k}", 0.0, strict_lo=True) for k, v in a.items()})
+
+
+def build(cfg: Atmosphere, ctx: BuildContext) -> Built:
+    return Built(atmosphere=cfg)  # immutable: the scene's config is the model
+
+
+ENTRY = ModelEntry("atmosphere", parse, build, needs_planet)

@@ -12,10 +12,17 @@ at the centre of mass), ``force_B`` (body frame, at the centre of mass) and
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from lander_sim.physics.models.atmosphere import Atmosphere
+    from lander_sim.physics.models.ground import Ground
+    from lander_sim.physics.vehicle import Vehicle
+    from lander_sim.yaml_file import Reader
 
 
 @dataclass
@@ -73,3 +80,53 @@ class ForceModel(Protocol):
     def add(self, ctx: EvalContext, force_W: np.ndarray, force_B: np.ndarray, torque_B: np.ndarray) -> None:
         """Add this model's force (world or body frame) and body torque to the accumulators."""
         ...
+
+
+# --- a model as a scene switches it on (the table: lander_sim.physics.models.table) ----------
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """What a model's ``build`` may use besides its own config: the vehicle, and the planet radius
+    [m] set by the gravity model (0 without a planet; models are built in the table's order)."""
+
+    vehicle: Vehicle
+    planet_radius: float = 0.0
+
+
+@dataclass(frozen=True)
+class Built:
+    """What one model adds to a simulation: force/torque models for the evaluation loop, the
+    atmosphere (density for the drag models), the planet radius, the ground (touchdown)."""
+
+    forces: tuple[ForceModel, ...] = ()
+    atmosphere: Atmosphere | None = None
+    planet_radius: float | None = None
+    ground: Ground | None = None
+
+
+@dataclass(frozen=True)
+class ModelEntry:
+    """One row of the models table: the scene key under ``models:``, and the model module's own
+
+    * ``parse(reader, node, path) -> config``: the section, validated (errors name ``path``);
+    * ``build(config, context) -> Built``: the model objects;
+    * ``needs(configs) -> str | None``: why the model cannot be on with the other models switched
+      on (``configs``: key -> config of every model on), or None.
+    """
+
+    key: str
+    parse: Callable[[Reader, Any, str], Any]
+    build: Callable[[Any, BuildContext], Built]
+    needs: Callable[[Mapping[str, Any]], str | None] = lambda _on: None
+
+
+def needs_planet(on: Mapping[str, Any]) -> str | None:
+    """For models that need a planet (altitude above its surface): inverse-square gravity."""
+    g = on.get("gravity")
+    return None if getattr(g, "kind", None) == "inverse-square" else "needs a planet: expected models.gravity.kind: inverse-square"
+
+
+def needs_air(on: Mapping[str, Any]) -> str | None:
+    """For models that need air density: the atmosphere."""
+    return None if "atmosphere" in on else "needs air: expected models.atmosphere to be switched on"

@@ -5,7 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lander_sim.physics.models.base import EvalContext
+from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry
+from lander_sim.yaml_file import Reader
 
 
 @dataclass
@@ -36,3 +37,23 @@ class ConstantForce:
     def potential(self, r_W: np.ndarray, R: np.ndarray, mass: float) -> float:
         """Potential ``-F_W . (r_W + R^T point_B)`` [J] of a constant force (zero at the origin)."""
         return -float(self.force_W @ (r_W + R.T @ self.point_B))
+
+
+@dataclass(frozen=True)
+class ConstantForceConfig:
+    """Scene section ``models.constant_force``: ``force_W`` [N, world frame] at ``point_B`` [m, body frame]."""
+
+    force_W: tuple[float, float, float]
+    point_B: tuple[float, float, float]
+
+
+def parse(rd: Reader, node: object, path: str) -> ConstantForceConfig:
+    f = rd.mapping(node, path, {"force_W", "point_B"}, ("force_W", "point_B"))
+    return ConstantForceConfig(rd.vector3(f["force_W"], f"{path}.force_W"), rd.vector3(f["point_B"], f"{path}.point_B"))
+
+
+def build(cfg: ConstantForceConfig, ctx: BuildContext) -> Built:
+    return Built(forces=(ConstantForce(np.array(cfg.force_W, dtype=float), np.array(cfg.point_B, dtype=float)),))
+
+
+ENTRY = ModelEntry("constant_force", parse, build)

@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from lander_sim.physics import constants as c
-from lander_sim.physics.models.base import EvalContext
+from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry
+from lander_sim.yaml_file import Reader
 
 
 @dataclass
@@ -64,3 +65,36 @@ class UniformGravity:
     def potential(self, r_W: np.ndarray, R: np.ndarray, mass: float) -> float:
         """Potential energy ``-m g . r`` [J]."""
         return -mass * float(self.g_W @ r_W)
+
+
+@dataclass(frozen=True)
+class GravityConfig:
+    """Scene section ``models.gravity``: ``kind`` ``inverse-square`` (``gm`` [m^3/s^2], planet of
+    ``radius`` [m]) or ``uniform`` (``g_W`` [m/s^2], world frame)."""
+
+    kind: str
+    gm: float = c.GM_MARS
+    radius: float = c.MARS_RADIUS
+    g_W: tuple[float, float, float] = (0.0, 0.0, -c.SURFACE_GRAVITY)
+
+
+def parse(rd: Reader, node: object, path: str) -> GravityConfig:
+    g = rd.mapping(node, path, {"kind", "gm", "radius", "g_W"}, ("kind",))
+    kind = rd.choice(g["kind"], f"{path}.kind", ("inverse-square", "uniform"))
+    cfg = GravityConfig(kind=kind)
+    if "gm" in g:
+        cfg = replace(cfg, gm=rd.number(g["gm"], f"{path}.gm", 0.0, strict_lo=True))
+    if "radius" in g:
+        cfg = replace(cfg, radius=rd.number(g["radius"], f"{path}.radius", 0.0, strict_lo=True))
+    if "g_W" in g:
+        cfg = replace(cfg, g_W=rd.vector3(g["g_W"], f"{path}.g_W"))
+    return cfg
+
+
+def build(cfg: GravityConfig, ctx: BuildContext) -> Built:
+    if cfg.kind == "inverse-square":
+        return Built(forces=(InverseSquareGravity(gm=cfg.gm),), planet_radius=cfg.radius)
+    return Built(forces=(UniformGravity(g_W=np.array(cfg.g_W, dtype=float)),))
+
+
+ENTRY = ModelEntry("gravity", parse, build)

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.base import BuildContext, Built, ModelEntry, needs_planet
+from lander_sim.yaml_file import Reader
 
 #: Touchdown classes, best first.
 SAFE, HARD, CRASH = "safe", "hard", "crash"
@@ -117,3 +119,25 @@ class Ground:
         assert self.limits is not None
         cls = self.limits.classify(-vr, ground_speed, tilt)
         return Touchdown(fraction, -vr, ground_speed, cls == CRASH, tilt, cls)
+
+
+@dataclass(frozen=True)
+class GroundConfig:
+    """Scene section ``models.ground``: ``safe_speed`` [m/s]; ``limits``: the scene's ``touchdown``
+    section, set by the scene loader (None: ``safe_speed`` for both speeds, no tilt limit)."""
+
+    safe_speed: float = 1.0
+    limits: TouchdownLimits | None = None
+
+
+def parse(rd: Reader, node: object, path: str) -> GroundConfig:
+    g = rd.mapping(node, path, {"safe_speed"})
+    return GroundConfig(safe_speed=rd.number(g.get("safe_speed", GroundConfig.safe_speed), f"{path}.safe_speed", 0.0,
+                                             strict_lo=True))
+
+
+def build(cfg: GroundConfig, ctx: BuildContext) -> Built:
+    return Built(ground=Ground(ctx.planet_radius, ctx.vehicle.size, cfg.safe_speed, limits=cfg.limits))
+
+
+ENTRY = ModelEntry("ground", parse, build, needs_planet)

@@ -4,11 +4,13 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from lander_sim.physics import constants as c
-from lander_sim.physics.models.base import EvalContext
+from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry, needs_air
+from lander_sim.yaml_file import Reader
 
 
 class ChuteStatus(enum.Enum):
@@ -78,3 +80,32 @@ class Parachute:
             too_fast = inside_atmosphere and speed > self.max_speed
             self.status = ChuteStatus.LOST if too_fast else ChuteStatus.DEPLOYED
         return self.status
+
+
+@dataclass(frozen=True)
+class ParachuteConfig:
+    """Scene section ``models.parachute``: canopy radius [m], drag coefficient, attachment point
+    [m, body frame; None: the top of the body, ``(0, 0, L/2)``], drag [N] and speed [m/s] limits."""
+
+    radius: float = c.PARACHUTE_RADIUS
+    cd: float = c.PARACHUTE_DRAG_COEFFICIENT
+    attach_B: tuple[float, float, float] | None = None
+    max_drag: float = c.PARACHUTE_MAX_DRAG
+    max_speed: float = c.PARACHUTE_MAX_SPEED
+
+
+def parse(rd: Reader, node: object, path: str) -> ParachuteConfig:
+    p = rd.mapping(node, path, {"radius", "cd", "attach_B", "max_drag", "max_speed"})
+    kw: dict[str, Any] = {k: rd.number(v, f"{path}.{k}", 0.0, strict_lo=True) for k, v in p.items() if k != "attach_B"}
+    if "attach_B" in p:
+        kw["attach_B"] = rd.vector3(p["attach_B"], f"{path}.attach_B")
+    return ParachuteConfig(**kw)
+
+
+def build(cfg: ParachuteConfig, ctx: BuildContext) -> Built:
+    attach = np.array(cfg.attach_B if cfg.attach_B is not None else (0.0, 0.0, 0.5 * ctx.vehicle.size))
+    return Built(forces=(Parachute(radius=cfg.radius, cd=cfg.cd, attach_B=attach, max_drag=cfg.max_drag,
+                                   max_speed=cfg.max_speed),))
+
+
+ENTRY = ModelEntry("parachute", parse, build, needs_air)

@@ -5,8 +5,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lander_sim.physics.models.base import EvalContext
+from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry
 from lander_sim.physics.vehicle import Vehicle
+from lander_sim.yaml_file import Reader
 
 
 @dataclass
@@ -48,3 +49,20 @@ class Thrusters:
         if y[13] <= 0.0:
             return 0.0
         return -float(throttles @ self._burn)
+
+
+@dataclass(frozen=True)
+class ThrustersConfig:
+    """Scene section ``models.thrusters``: no keys (the thrusters are the vehicle's)."""
+
+
+def parse(rd: Reader, node: object, path: str) -> ThrustersConfig:
+    rd.mapping(node, path, set())
+    return ThrustersConfig()
+
+
+def build(cfg: ThrustersConfig, ctx: BuildContext) -> Built:
+    return Built(forces=(Thrusters(ctx.vehicle),))
+
+
+ENTRY = ModelEntry("thrusters", parse, build)

@@ -196,10 +196,7 @@ def resolve_controller(plan: FlightPlan) -> str | None:
         scene = load_scene(plan.scene)
     except ValueError as exc:
         raise LaunchError(str(exc)) from None
-    ap = getattr(scene, "autopilot", None)
-    if ap is None:
-        return None
-    return ap.get("controller") if hasattr(ap, "get") else getattr(ap, "controller", None)
+    return None if scene.autopilot is None else scene.autopilot.controller
 
 
 def scene_end_time(name: str) -> float | None:

@@ -35,10 +35,8 @@ def _scene_controller(scene: str) -> str:
     """The scene's own autopilot controller, or '' when it has none (e.g. the rotor, scenario 6)."""
     from lander_sim.scenes import load_scene
 
-    autopilot = getattr(load_scene(scene), "autopilot", None)
-    if autopilot is None:
-        return ""
-    return autopilot.get("controller", "") if hasattr(autopilot, "get") else getattr(autopilot, "controller", "")
+    autopilot = load_scene(scene).autopilot
+    return "" if autopilot is None else autopilot.controller
 
 
 def _nodes(context):

@@ -27,9 +27,6 @@ DEFAULT_CONTROLLER = "combined"
 #: Demand altitude [m] when the scene gives none: z_e = 500 m of the extended program.
 DEFAULT_DEMAND_ALTITUDE = 500.0
 #: Keys a scene's ``autopilot`` section may hold.
-SCENE_AUTOPILOT_KEYS = ("controller", "parameters", "demand_altitude")
-
-
 class ConfigError(ValueError):
     """A parameter value or a scene's autopilot section was refused; the message names key and value."""
 
@@ -121,24 +118,11 @@ class SceneAutopilot:
 
 
 def scene_autopilot(scene: Scene) -> SceneAutopilot:
-    """The scene's ``autopilot`` section (``controller``, ``parameters``, ``demand_altitude``) with defaults.
-
-    Raises :class:`ConfigError` naming the scene and the key for an unknown key or a value of the
-    wrong type. The demand itself is validated where it is used
-    (:class:`lander_autopilot.controllers.Demand`).
-    """
+    """The scene's ``autopilot`` section (validated by the scene loader: ``AutopilotSection``)
+    completed with the defaults. The demand itself is validated where it is used
+    (:class:`lander_autopilot.controllers.Demand`)."""
     section = scene.autopilot
     if section is None:
         return SceneAutopilot()
-    unknown = sorted(set(section) - set(SCENE_AUTOPILOT_KEYS))
-    if unknown:
-        raise ConfigError(
-            f"scene {scene.name!r}: autopilot.{unknown[0]}: unknown key; allowed: {', '.join(SCENE_AUTOPILOT_KEYS)}"
-        )
-    params = section.get("parameters") or {}
-    if not isinstance(params, Mapping):
-        raise ConfigError(f"scene {scene.name!r}: autopilot.parameters must be a mapping, got {params!r}")
-    demand = section.get("demand_altitude", DEFAULT_DEMAND_ALTITUDE)
-    if isinstance(demand, bool) or not isinstance(demand, (int, float)):
-        raise ConfigError(f"scene {scene.name!r}: autopilot.demand_altitude must be a number [m], got {demand!r}")
-    return SceneAutopilot(str(section["controller"]), dict(params), float(demand))
+    demand = DEFAULT_DEMAND_ALTITUDE if section.demand_altitude is None else section.demand_altitude
+    return SceneAutopilot(section.controller, dict(section.parameters), demand)

@@ -3,6 +3,7 @@
 Each model's config and the parsing of its section are the model module's own
 (:mod:`lander_sim.physics.models.table`)."""
 from lander_sim.scenes.loader import (
+    AutopilotSection,
     Models,
     Scene,
     SceneError,
@@ -15,5 +16,5 @@ from lander_sim.scenes.loader import (
 )
 
 __all__ = [
-    "Models", "Scene", "SceneError", "SceneInfo", "ThrusterFailure", "list_scenes", "load_file", "load_scene", "parse_scene",
+    "AutopilotSection", "Models", "Scene", "SceneError", "SceneInfo", "ThrusterFailure", "list_scenes", "load_file", "load_scene", "parse_scene",
 ]

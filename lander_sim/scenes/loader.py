@@ -52,6 +52,21 @@ class ThrusterFailure:
 
 
 @dataclass(frozen=True)
+class AutopilotSection:
+    """The scene's ``autopilot`` section, parsed once here for everyone (the autopilot node, the
+    launcher, sweeps): the controller plug-in to fly (by name), its parameters (checked by the
+    controller itself) and the demand altitude [m] (None: the autopilot's default)."""
+
+    controller: str
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    demand_altitude: float | None = None
+
+
+#: Keys of a scene's ``autopilot`` section.
+AUTOPILOT_KEYS = ("controller", "parameters", "demand_altitude")
+
+
+@dataclass(frozen=True)
 class Models:
     """The models a scene switches on: each one's config (its module's dataclass) by its key
     under ``models:``, in the order of :data:`lander_sim.physics.models.table.MODELS`. A model
@@ -93,7 +108,7 @@ class Scene:
     integrator_options: Mapping[str, Any] = field(default_factory=dict)
     translation: bool = True
     stabiliser: bool = False
-    autopilot: Mapping[str, Any] | None = None
+    autopilot: AutopilotSection | None = None
     gimbal_threshold: float = 1e-3
     wind_W: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gust: GustConfig | None = None
@@ -197,6 +212,21 @@ def _wind(rd: Reader, top: dict[str, Any]) -> tuple[tuple[float, float, float], 
     return mean, gust
 
 
+def _autopilot(rd: Reader, node: Any) -> AutopilotSection | None:
+    """``autopilot: null`` (the sim alone) or ``{controller, parameters, demand_altitude}``."""
+    if node is None:
+        return None
+    if not isinstance(node, dict) or not isinstance(node.get("controller"), str):
+        raise rd.fail("autopilot", f"expected null or a mapping with a string 'controller' key, got {node!r}")
+    a = rd.mapping(node, "autopilot", set(AUTOPILOT_KEYS))
+    params = a.get("parameters") or {}
+    if not isinstance(params, dict):
+        raise rd.fail("autopilot.parameters", f"expected a mapping (the controller's parameters), got {params!r}")
+    demand = a.get("demand_altitude")
+    return AutopilotSection(a["controller"], dict(params),
+                            None if demand is None else rd.number(demand, "autopilot.demand_altitude", 0.0))
+
+
 def _on(m: dict[str, Any], key: str) -> bool:
     """A model is on when its key holds a mapping (``{}`` for defaults); absent, null or false is off."""
     return m.get(key) not in (None, False)
@@ -296,10 +326,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
     models = _touchdown(rd, top.get("touchdown"), _models(rd, top.get("models")))
     if "thrusters" in models and vehicle.n_thrusters == 0:
         raise rd.fail("models.thrusters", "the vehicle has no thrusters: use vehicle.preset: lander")
-    autopilot = top.get("autopilot")
-    if autopilot is not None:
-        if not isinstance(autopilot, dict) or not isinstance(autopilot.get("controller"), str):
-            raise rd.fail("autopilot", f"expected null or a mapping with a string 'controller' key, got {autopilot!r}")
+    autopilot = _autopilot(rd, top.get("autopilot"))
     dt = rd.number(top["dt"], "dt", 0.0, strict_lo=True)
     mean_wind, gust = _wind(rd, top)
     end = rd.mapping(top.get("end"), "end", {"max_time"})

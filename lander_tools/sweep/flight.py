@@ -76,10 +76,8 @@ def base_demand_altitude(scene: Any) -> float:
     autopilot's default :class:`Demand` altitude (scenario 7 starts 50 m above its 500 m hover)."""
     from lander_autopilot.controllers.base import Demand
 
-    ap = scene.autopilot or {}
-    if isinstance(ap.get("demand_altitude"), (int, float)) and not isinstance(ap.get("demand_altitude"), bool):
-        return float(ap["demand_altitude"])
-    return Demand().altitude
+    ap = scene.autopilot
+    return Demand().altitude if ap is None or ap.demand_altitude is None else ap.demand_altitude
 
 
 def demand_schedule(spec: SweepSpec, scene: Any, case: Any) -> tuple[float, float, float]:

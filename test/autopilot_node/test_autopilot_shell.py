@@ -21,7 +21,7 @@ from lander_interfaces.msg import LanderState
 from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.ros.convert import fill_state
-from lander_sim.scenes import load_scene
+from lander_sim.scenes import Scene, SceneError, load_scene, parse_scene
 
 
 def test_controller_params_parse_and_dump_round_trip():
@@ -38,15 +38,24 @@ def test_bad_controller_params_are_refused_naming_the_parameter(text, words):
 
 
 def test_the_scene_autopilot_section_gives_the_defaults_and_unknown_keys_are_named():
+    """Parsed once, by the scene loader (AutopilotSection); the autopilot completes it with defaults."""
     hover = load_scene("hover")
-    assert scene_autopilot(hover).controller == hover.autopilot["controller"]
+    assert hover.autopilot is not None
+    assert scene_autopilot(hover).controller == hover.autopilot.controller
     assert scene_autopilot(hover).demand_altitude == 500.0
-    custom = dataclasses.replace(hover, autopilot={"controller": "lqr", "parameters": {"R_altitude": 10.0},
-                                                   "demand_altitude": 650})
+    custom = _hover_with_autopilot({"controller": "lqr", "parameters": {"R_altitude": 10.0}, "demand_altitude": 650})
     got = scene_autopilot(custom)
     assert (got.controller, dict(got.parameters), got.demand_altitude) == ("lqr", {"R_altitude": 10.0}, 650.0)
-    with pytest.raises(ConfigError, match=r"scene 'hover': autopilot\.gains: unknown key"):
-        scene_autopilot(dataclasses.replace(hover, autopilot={"controller": "lqr", "gains": [1]}))
+    with pytest.raises(SceneError, match=r"hover.yaml: autopilot\.gains: unknown key"):
+        _hover_with_autopilot({"controller": "lqr", "gains": [1]})
+
+
+def _hover_with_autopilot(section: dict[str, object]) -> Scene:
+    import yaml
+
+    data = yaml.safe_load(load_scene("hover").source.read_text())
+    data["autopilot"] = section
+    return parse_scene(data, "hover.yaml")
 
 
 def _snapshot(t: float, q: np.ndarray, n: int = 4) -> SimpleNamespace:

@@ -28,7 +28,7 @@ def test_scenario_initial_conditions_follow_the_issue():
     hover = load_scene("7")
     assert np.allclose(hover.initial_state[0:3], [0, -(R + 550), 0])
     assert np.allclose(hover.initial_state[6:10], np.array([0.8, 0.7, 0.1, 0.0]) / np.linalg.norm([0.8, 0.7, 0.1]))
-    assert hover.autopilot is not None and isinstance(hover.autopilot["controller"], str)
+    assert hover.autopilot is not None and isinstance(hover.autopilot.controller, str)
     assert load_scene("hover-canted").vehicle.thrusters[0].direction_B[0] > 0
     assert load_scene("1").stabiliser and not load_scene("6").stabiliser
     rotor = load_scene("rotor-euler")

@@ -43,7 +43,8 @@ def test_analyse_of_the_hover_flight_reports_demand_hover_error_and_draws_the_de
     assert r.returncode == 0, r.stderr
     m = json.loads(r.stdout)["flights"][0]
     ap = load_scene("hover").autopilot
-    scene_demand = ap["demand_altitude"] if isinstance(ap, dict) else ap.demand_altitude
+    assert ap is not None
+    scene_demand = ap.demand_altitude
     assert m["demand_altitude"] == scene_demand
     f = Flight.from_bag(read_bag(bag))
     assert m["step_size"] == scene_demand - f.altitude[0]  # the flight starts above the demand

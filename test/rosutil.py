@@ -256,3 +256,130 @@ def sim_service_clients(node: Any) -> dict[str, Any]:
              "step": StepSimulation, "run_until": RunUntil, "deploy_parachute": Trigger,
              "set_stabiliser": SetBool, "subscribers": Trigger}
     return {name: node.create_client(t, f"/lander/{name}") for name, t in types.items()}
+
+
+# --- one way to start a node, one observer ------------------------------------------------------
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def ros_args(params: dict[str, object]) -> list[str]:
+    """``--ros-args -p k:=v ...`` for a child node (booleans as true/false, an empty string as '')."""
+    args = ["--ros-args"]
+    for k, v in params.items():
+        if isinstance(v, bool):
+            lit = "true" if v else "false"
+        elif isinstance(v, str):
+            lit = v if v else "''"
+        else:
+            lit = repr(v)
+        args += ["-p", f"{k}:={lit}"]
+    return args
+
+
+def start_node(module: str, params: dict[str, object] | None = None, name: str | None = None,
+               env: dict[str, str] | None = None) -> ChildProcess:
+    """``python -m MODULE --ros-args -p ...`` from the repository root (a node under test)."""
+    return ChildProcess(["-m", module, *ros_args(params or {})], env=env, cwd=REPO, name=name or module.rsplit(".", 1)[-1])
+
+
+def stamp_seconds(stamp: Any) -> float:
+    """A ``builtin_interfaces/Time`` as seconds: the nodes' own conversion, so tests compare like with like."""
+    from lander_autopilot.ros.convert import stamp_to_seconds
+
+    return stamp_to_seconds(stamp)
+
+
+class Observer:
+    """A test-side rclpy node (no mock of ROS) that records topics, publishes and calls services.
+
+    Every wait spins its executor until a condition holds, TimeoutError naming the condition after
+    the timeout; nothing sleeps a fixed time. ``record`` subscribes a list to a topic; ``received``
+    counts what the recorders took (``drain`` watches it); ``call`` waits for the service, then
+    its answer. Subclasses (the suites' ground station, watch and probe) add their topics."""
+
+    #: Generous: discovery and process start-up (rclpy + python-control imports) on a loaded 2-core machine.
+    start_timeout = 45.0
+    #: One request/answer over the middleware.
+    reply_timeout = 15.0
+
+    def __init__(self, name: str, context: Any = None, node_kwargs: dict[str, Any] | None = None) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.node = Node(name, context=context, **(node_kwargs or {}))
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.received = 0
+        self.clients: dict[str, Any] = {}
+
+    def record(self, topic: str, msg_type: Any, store: Any = None, depth: int = 10_000,
+               qos: Any = None) -> Any:
+        """Subscribe ``store`` (a new list by default) to ``topic``; returns it."""
+        store = [] if store is None else store
+
+        def keep(msg: Any) -> None:
+            store.append(msg)
+            self.received += 1
+
+        self.node.create_subscription(msg_type, topic, keep, depth if qos is None else qos)
+        return store
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float | None = None, what: str = "condition",
+                 poll: float = 0.01) -> None:
+        wait_for(predicate, self.reply_timeout if timeout is None else timeout, self.executor, what, poll=poll)
+
+    def spin_for(self, seconds: float) -> None:
+        """Serve callbacks for ``seconds`` of wall time (a measuring window, not a synchronisation)."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=min(0.01, max(0.0, end - time.monotonic())))
+
+    def drain(self, timeout: float | None = None) -> None:
+        """Take every message already queued: spin until two spins in a row take none (call it
+        once the publishers are quiet, e.g. the simulation paused, before reading records as complete)."""
+        idle = 0
+
+        def quiet() -> bool:
+            nonlocal idle
+            before = self.received
+            self.executor.spin_once(timeout_sec=0.05)
+            idle = idle + 1 if self.received == before else 0
+            return idle >= 2
+
+        wait_for(quiet, self.reply_timeout if timeout is None else timeout, None, "queued messages drained", poll=0.0)
+
+    def wait_graph(self, subscribers: dict[str, int], publishers: dict[str, int] | None = None,
+                   services: tuple[str, ...] = ()) -> None:
+        """Until this node sees at least the given numbers of subscribers / publishers per topic and
+        the named clients' services are ready."""
+        n, pubs = self.node, publishers or {}
+
+        def ready() -> bool:
+            return (all(n.count_subscribers(t) >= k for t, k in subscribers.items())
+                    and all(n.count_publishers(t) >= k for t, k in pubs.items())
+                    and all(self.clients[s].service_is_ready() for s in services))
+
+        self.wait_for(ready, self.start_timeout, f"discovery of {subscribers} / {pubs} / {services}")
+
+    def call(self, client: Any, request: Any = None, timeout: float | None = None) -> Any:
+        """Call a service (a client, or the name of one in ``clients``) and return its answer."""
+        if isinstance(client, str):
+            client = self.clients[client]
+        self.wait_for(client.service_is_ready, self.start_timeout, f"service {client.srv_name}")
+        future = client.call_async(client.srv_type.Request() if request is None else request)
+        self.wait_for(future.done, timeout, f"answer of {client.srv_name}")
+        return future.result()
+
+    def parameter(self, client: Any, name: str) -> Any:
+        """Current value of a node's parameter ``name`` through its ``get_parameters`` service client."""
+        from rcl_interfaces.msg import Parameter as ParameterMsg
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import Parameter
+
+        reply = self.call(client, GetParameters.Request(names=[name]))
+        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=reply.values[0])).value

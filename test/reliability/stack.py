@@ -8,11 +8,9 @@ holds or a timeout expires; nothing sleeps a fixed time.
 """
 from __future__ import annotations
 
-import importlib.util
 import os
 import signal
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -25,26 +23,8 @@ START_TIMEOUT = 45.0
 REPLY_TIMEOUT = 15.0
 
 
-def _load_bench() -> Any:
-    """bench/full_stack.py (the /proc readers live there once; the benchmark uses them too)."""
-    spec = importlib.util.spec_from_file_location("full_stack_bench", REPO / "bench" / "full_stack.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("full_stack_bench", mod)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-bench = _load_bench()
-
-
-def ros_args(params: dict[str, object]) -> list[str]:
-    """``--ros-args -p k:=v ...`` for a child node."""
-    args = ["--ros-args"]
-    for k, v in params.items():
-        lit = ("true" if v else "false") if isinstance(v, bool) else (v or "''") if isinstance(v, str) else repr(v)
-        args += ["-p", f"{k}:={lit}"]
-    return args
+ros_args = rosutil.ros_args
+stamp_s = rosutil.stamp_seconds
 
 
 class Stack:
@@ -63,10 +43,10 @@ class Stack:
         return child
 
     def sim(self, **params: object) -> rosutil.ChildProcess:
-        return self.start("sim", ["-m", "lander_sim.node", *ros_args(params)])
+        return self.start("sim", ["-m", "lander_sim.node", *rosutil.ros_args(params)])
 
     def autopilot(self, **params: object) -> rosutil.ChildProcess:
-        return self.start("autopilot", ["-m", "lander_autopilot.node", *ros_args(params)])
+        return self.start("autopilot", ["-m", "lander_autopilot.node", *rosutil.ros_args(params)])
 
     def recorder(self, bag: Path, topics: tuple[str, ...]) -> rosutil.ChildProcess:
         return self.start("recorder", ["-m", "lander_tools.recorder", "-o", str(bag), *topics])
@@ -95,36 +75,30 @@ class Stack:
             child.close()
 
 
-class Watch:
+class Watch(rosutil.Observer):
     """Test-side node: records outputs of sim and autopilot, publishes inputs, calls services."""
+
+    start_timeout = START_TIMEOUT
+    reply_timeout = REPLY_TIMEOUT
 
     def __init__(self, context: Any, name: str = "reliability_watch") -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import Vector3Stamped
         from rcl_interfaces.srv import GetParameters, SetParameters
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64
 
         from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
         from lander_interfaces.srv import SwitchController
 
-        self.node = Node(name, context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
+        super().__init__(name, context)
         n = self.node
-        self.states: list[Any] = []
-        self.throttles: list[Any] = []
-        self.statuses: list[Any] = []
-        self.events: list[Any] = []
-        self.diagnostics: list[dict[str, str]] = []
-        self.received = 0
         deep = 100_000
-        n.create_subscription(LanderState, "/lander/state", self._keep(self.states), deep)
-        n.create_subscription(ThrottleCommand, "/lander/throttle", self._keep(self.throttles), deep)
-        n.create_subscription(AutopilotStatus, "/autopilot/status", self._keep(self.statuses), deep)
-        n.create_subscription(FlightEvent, "/lander/events", self._keep(self.events), deep)
+        self.states: list[Any] = self.record("/lander/state", LanderState, depth=deep)
+        self.throttles: list[Any] = self.record("/lander/throttle", ThrottleCommand, depth=deep)
+        self.statuses: list[Any] = self.record("/autopilot/status", AutopilotStatus, depth=deep)
+        self.events: list[Any] = self.record("/lander/events", FlightEvent, depth=deep)
+        self.diagnostics: list[dict[str, str]] = []
         n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 1000)
         reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         self.pub = {
@@ -142,59 +116,10 @@ class Watch:
             "ap_get_parameters": n.create_client(GetParameters, "/autopilot/get_parameters"),
         }
 
-    def _keep(self, store: list) -> Callable[[Any], None]:
-        def keep(msg: Any) -> None:
-            store.append(msg)
-            self.received += 1
-
-        return keep
-
     def _on_diag(self, msg: Any) -> None:
         for st in msg.status:
             if st.name.startswith("lander_sim"):
                 self.diagnostics.append({kv.key: kv.value for kv in st.values})
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-
-    # --- waiting -------------------------------------------------------------------------------
-
-    def wait_for(self, predicate: Callable[[], bool], timeout: float = REPLY_TIMEOUT, what: str = "condition") -> None:
-        rosutil.wait_for(predicate, timeout, self.executor, what, poll=0.01)
-
-    def drain(self, timeout: float = REPLY_TIMEOUT) -> None:
-        """Take every message already queued: spin until two spins in a row take none."""
-        idle = 0
-
-        def quiet() -> bool:
-            nonlocal idle
-            before = self.received
-            self.executor.spin_once(timeout_sec=0.05)
-            idle = idle + 1 if self.received == before else 0
-            return idle >= 2
-
-        rosutil.wait_for(quiet, timeout, None, "queued messages drained", poll=0.0)
-
-    def wait_graph(self, subscribers: dict[str, int], publishers: dict[str, int] | None = None,
-                   services: tuple[str, ...] = ()) -> None:
-        """Until this node sees the given numbers of subscribers/publishers and the services answer."""
-        n = self.node
-        pubs = publishers or {}
-
-        def ready() -> bool:
-            return (all(n.count_subscribers(t) >= k for t, k in subscribers.items())
-                    and all(n.count_publishers(t) >= k for t, k in pubs.items())
-                    and all(self.clients[s].service_is_ready() for s in services))
-
-        self.wait_for(ready, START_TIMEOUT, f"discovery of {subscribers} / {pubs} / {services}")
-
-    def call(self, name: str, request: Any = None, timeout: float = REPLY_TIMEOUT) -> Any:
-        client = self.clients[name]
-        self.wait_for(client.service_is_ready, START_TIMEOUT, f"service {client.srv_name}")
-        future = client.call_async(client.srv_type.Request() if request is None else request)
-        self.wait_for(future.done, timeout, f"answer of {client.srv_name}")
-        return future.result()
 
     def latest_diag(self, after: int | None = None, timeout: float = REPLY_TIMEOUT) -> dict[str, str]:
         """The first sim diagnostics report after the ``after`` reports received so far (default: a new one)."""
@@ -202,18 +127,9 @@ class Watch:
         self.wait_for(lambda: len(self.diagnostics) > n0, timeout, "a diagnostics report of the sim")
         return self.diagnostics[-1]
 
-    def parameter(self, node: str, name: str) -> Any:
+    def parameter(self, node: str, name: str) -> Any:  # type: ignore[override]  # by node name here
         """Current value of ``node``'s (``sim`` / ``ap``) parameter ``name`` through its parameter service."""
-        from rcl_interfaces.msg import Parameter as ParameterMsg
-        from rcl_interfaces.srv import GetParameters
-        from rclpy.parameter import Parameter
-
-        reply = self.call(f"{node}_get_parameters", GetParameters.Request(names=[name]))
-        return Parameter.from_parameter_msg(ParameterMsg(name=name, value=reply.values[0])).value
-
-
-def stamp_s(stamp: Any) -> float:
-    return stamp.sec + 1e-9 * stamp.nanosec
+        return super().parameter(f"{node}_get_parameters", name)
 
 
 def raw_messages(bag: Path, since: dict[str, int] | None = None) -> dict[str, list[tuple[bytes, Any]]]:

@@ -16,7 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .stack import START_TIMEOUT, Stack, Watch, bench, raw_messages, stamp_s
+from lander_tools import stack_meter as meter
+
+from .stack import START_TIMEOUT, Stack, Watch, raw_messages, stamp_s
 
 SCENE = "hover-canted"  # scenario 7 with the seed-2 canted thrusters, its own autopilot
 SEED = 7
@@ -125,7 +127,7 @@ def test_two_lockstep_flights_under_cpu_load_are_bit_identical(stack: Stack, wat
 
 
 def _fly_cli(bag: Path, compose: bool) -> None:
-    rc, out = bench.fly_recorded(SCENE, FLIGHT_S, compose, bag, timeout=180.0)
+    rc, out = meter.fly_recorded(SCENE, FLIGHT_S, compose, bag, timeout=180.0)
     assert rc == 0, out
 
 
@@ -134,7 +136,7 @@ def test_lander_fly_lockstep_answers_every_state_from_the_first(tmp_path: Path, 
     for k in range(2):
         bag = tmp_path / f"fly{k}"
         _fly_cli(bag, compose=False)
-        f = bench.loop_figures(bag)
+        f = meter.loop_figures(bag)
         assert (f.states_missing, f.commands_missing, f.lockstep_timeouts) == (0, 0, 0), f
 
 

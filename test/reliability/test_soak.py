@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from lander_tools import stack_meter as meter
 from lander_tools.bagio import read_bag
 
-from .stack import bench, stamp_s
+from .stack import stamp_s
 
 SCENE = "circular-orbit"
 CONTROLLER = "combined-quaternion"
@@ -28,12 +29,12 @@ SLACK_BYTES = 8 * 2**20
 
 def _soak(tmp_path: Path, sim_seconds: float) -> None:
     bag = tmp_path / "soak"
-    sampler = bench.Sampler(period=0.2)
-    rc, out = bench.fly_recorded(SCENE, sim_seconds, False, bag, extra=("--controller", CONTROLLER),
+    sampler = meter.Sampler(period=0.2)
+    rc, out = meter.fly_recorded(SCENE, sim_seconds, False, bag, extra=("--controller", CONTROLLER),
                                  sampler=sampler, timeout=60.0 + sim_seconds)
     series = sampler.stop()
     assert rc == 0, out  # time limit reached while flying
-    f = bench.loop_figures(bag)
+    f = meter.loop_figures(bag)
     b = read_bag(bag, ["/lander/state", "/lander/throttle"])
     states = b.messages("/lander/state")
     seq = np.array([m.sequence for m in states])

@@ -6,21 +6,17 @@ Every wait has a timeout and spins the executor; nothing sleeps a fixed time.
 """
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
-import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import Parameter
 from rcl_interfaces.srv import SetParameters
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter as RclParameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -33,49 +29,36 @@ REPO = Path(__file__).resolve().parents[2]
 
 @contextmanager
 def sim_node(params: dict[str, object], log: Path) -> Iterator[subprocess.Popen]:
-    """Run ``python -m lander_sim.node`` with ``params`` (``-p k:=v``); stop it with SIGINT afterwards."""
-    args = [sys.executable, "-m", "lander_sim.node", "--ros-args"]
-    for k, v in params.items():
-        args += ["-p", f"{k}:={_ros_literal(v)}"]
-    with open(log, "w") as out:
-        proc = subprocess.Popen(args, cwd=REPO, stdout=out, stderr=subprocess.STDOUT, env=os.environ.copy())
-        try:
-            yield proc
-        finally:
-            if proc.poll() is None:
-                proc.send_signal(2)
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+    """Run ``python -m lander_sim.node`` with ``params`` (``-p k:=v``); stop it with SIGINT afterwards.
+    ``log`` shows its output while it runs (a link to the child's log) and keeps it afterwards."""
+    child = rosutil.start_node("lander_sim.node", params, name="sim")
+    log.symlink_to(child.log.name)
+    try:
+        yield child.proc
+    finally:
+        child.stop(grace=10.0)
+        log.unlink()
+        log.write_text(child.output())
+        child.close()
 
 
-def _ros_literal(v: object) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return v if v else "''"
-    return repr(v)
-
-
-class Probe:
+class Probe(rosutil.Observer):
     """A test-side node: subscribes to the sim's outputs, publishes inputs, calls services."""
 
+    start_timeout = 30.0
+    reply_timeout = 30.0
+
     def __init__(self, name: str = "sim_test_probe") -> None:
-        self.node = Node(name, parameter_overrides=[RclParameter("use_sim_time", value=True)])
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
+        super().__init__(name, node_kwargs={"parameter_overrides": [RclParameter("use_sim_time", value=True)]})
         self.states: deque[LanderState] = deque(maxlen=100_000)
         self.clock_seen_at_state: deque[tuple[int, int]] = deque(maxlen=100_000)  # (state stamp ns, probe clock ns)
-        self.events: list[FlightEvent] = []
         self.diagnostics: list[dict[str, str]] = []
         self.clocks: deque[int] = deque(maxlen=100_000)
         self.answer: Callable[[LanderState], list[float] | None] | None = None  # lockstep controller, if set
         n = self.node
         n.create_subscription(LanderState, "/lander/state", self._on_state, 1000)
         n.create_subscription(Clock, "/clock", lambda m: self.clocks.append(_ns(m.clock)), 1000)
-        n.create_subscription(FlightEvent, "/lander/events", self.events.append, 10_000)
+        self.events: list[FlightEvent] = self.record("/lander/events", FlightEvent)
         n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         self.throttle_pub = n.create_publisher(ThrottleCommand, "/lander/throttle", qos)
@@ -84,10 +67,6 @@ class Probe:
             **rosutil.sim_service_clients(n),
             "set_parameters": n.create_client(SetParameters, "/lander_sim/set_parameters"),
         }
-
-    def close(self) -> None:
-        self.executor.remove_node(self.node)
-        self.node.destroy_node()
 
     # --- callbacks ---------------------------------------------------------------------------
 
@@ -103,43 +82,14 @@ class Probe:
         for st in msg.status:
             self.diagnostics.append({kv.key: kv.value for kv in st.values})
 
-    # --- waiting -----------------------------------------------------------------------------
-
-    def wait_for(self, predicate: Callable[[], bool], timeout: float, what: str) -> None:
-        """Spin until ``predicate()`` holds; fail the test naming ``what`` after ``timeout`` wall seconds."""
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline:
-                raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-            self.executor.spin_once(timeout_sec=0.01)
-
-    def spin_for(self, seconds: float) -> None:
-        """Serve callbacks for ``seconds`` of wall time (a measurement window, not a synchronisation)."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=min(0.01, max(0.0, end - time.monotonic())))
-
-    def call(self, name: str, request=None, timeout: float = 30.0):
-        """Call service ``name`` and return its response."""
-        client = self.clients[name]
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise AssertionError(f"service {name} not available after {timeout} s")
-        if request is None:
-            request = client.srv_type.Request()
-        future = client.call_async(request)
-        self.wait_for(future.done, timeout, f"a response from {name}")
-        return future.result()
+    # --- the sim's parameters ------------------------------------------------------------------
 
     def set_params(self, **params: object) -> None:
         """Set sim-node parameters through its standard parameter service; fail on refusal."""
-        req = SetParameters.Request()
-        for k, v in params.items():
-            req.parameters.append(Parameter(name=k, value=rosutil.param_value(v)))
-        res = self.call("set_parameters", req)
-        for k, r in zip(params, res.results):
+        for k, r in zip(params, self.set_params_result(**params)):
             assert r.successful, f"parameter {k} refused: {r.reason}"
 
-    def set_params_result(self, **params: object):
+    def set_params_result(self, **params: object) -> Any:
         req = SetParameters.Request()
         for k, v in params.items():
             req.parameters.append(Parameter(name=k, value=rosutil.param_value(v)))
@@ -152,8 +102,7 @@ class Probe:
             timeout,
             "the sim node to subscribe to /lander/throttle and /lander/wind",
         )
-        for c in self.clients.values():
-            assert c.wait_for_service(timeout_sec=timeout), f"service {c.srv_name} not available"
+        self.wait_graph({}, services=tuple(self.clients))
 
     def latest_state_after(self, action: Callable[[], object], timeout: float = 10.0) -> LanderState:
         """Do ``action`` (a service call that publishes a state) and return the state it published."""

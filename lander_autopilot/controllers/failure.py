@@ -25,11 +25,25 @@ thrusters ``j`` solve ``[tau_x, tau_y, F_z] = M t`` exactly (``M`` 3x3, invertib
 thruster lost), the attitude law's roll and pitch torque keep priority over the lift, and the yaw
 torque is let be (the lander spins up about its axis; the attitude demand follows the
 current heading so the spin is no error).
+
+**Under the parachute** the canopy's torque is part of the model (:class:`ChuteTorqueModel`:
+the simulator's formula, the wind learnt from the residual while the thrusters rest), passed to
+:meth:`ThrusterFailureDetector.observe` as the external torque.
+
+**Spinning** (:class:`SpinAllocation`): a long braking on the pair alone spins the lander up past
+what a 10 Hz law follows; spinning, the lone thruster may fire too, since its roll/pitch torque
+turns with the body. The three throttles then hold lift, yaw torque and the torque along the
+pair's axis exactly.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from lander_sim.physics import constants as c
+from lander_sim.physics.rotation import quat_to_matrix
+from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 
@@ -64,10 +78,20 @@ class ThrusterFailureDetector:
         self._N = np.zeros(n)
         self._E = 0.0
         self._last: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._last_external = np.zeros(3)
+        #: The last period's residual torque, body frame [N m] (zeros until there is one).
+        self.residual = np.zeros(3)
+        #: The throttles the last residual was computed with (what the thrusters were asked for).
+        self.residual_throttles = np.zeros(self.vehicle.n_thrusters)
 
-    def observe(self, t: float, omega_B: np.ndarray, fuel: float) -> int | None:
-        """Take this update's body rate; compare with the last period's commanded torque."""
+    def observe(self, t: float, omega_B: np.ndarray, fuel: float, external_torque: np.ndarray | None = None) -> int | None:
+        """Take this update's body rate; compare with the last period's commanded torque.
+
+        ``external_torque``: the known torque of everything but the thrusters at this instant, body
+        frame [N m] (the open parachute's); the period's is taken as the mean of its two ends.
+        """
         omega = np.array(omega_B, dtype=float)
+        ext = np.zeros(3) if external_torque is None else np.asarray(external_torque, dtype=float)
         if self.failed is None and self._last is not None:
             t0, w0, u0 = self._last
             dt = t - t0
@@ -75,8 +99,10 @@ class ThrusterFailureDetector:
                 I = self.vehicle.inertia(fuel)
                 w = 0.5 * (w0 + omega)
                 gyro = np.cross(I * w, w)  # (I w) x w
-                tau = u0 @ self.torque_per_throttle
+                tau = u0 @ self.torque_per_throttle + 0.5 * (ext + self._last_external)
                 r = I * (omega - w0) / dt - gyro - tau
+                self.residual = r
+                self.residual_throttles = u0
                 G = self.torque_per_throttle * u0[:, None]  # g_i = s_i u_i T_i: each thruster's missing torque
                 decay = float(np.exp(-dt / self.forgetting_time))
                 self._S = decay * self._S - G @ r * dt
@@ -90,12 +116,72 @@ class ThrusterFailureDetector:
                     self.failed = i
                     self.failed_at = t
         self._last = (t, omega, self._last[2] if self._last is not None else np.zeros(self.vehicle.n_thrusters))
+        self._last_external = ext
         return self.failed
 
     def commanded(self, throttles: np.ndarray) -> None:
         """The throttles sent for the coming period (after clipping)."""
         if self._last is not None:
             self._last = (self._last[0], self._last[1], np.array(throttles, dtype=float))
+
+
+class ChuteTorqueModel:
+    """The open parachute's torque on the lander, body frame [N m], as the simulator models it, with
+    the horizontal wind estimated from the torque the model leaves unexplained.
+
+    The canopy pulls ``F = 1/2 rho Cd pi r^2 |W| W`` at ``a = (0, 0, L/2)`` (body frame), with
+    ``W = R (w - v) - omega x a`` the air velocity at the attachment point; its torque ``a x F``
+    has no body-z part, so the yaw residual never depends on it. Under the canopy at 40 m/s that
+    torque is ~380 N m per radian of tilt and ~10 N m per m/s of horizontal wind: the tilt and rate
+    parts are known from the state, the wind part is not. While the thrusters are quiet (every
+    throttle under ``quiet_throttle``, so a dead one could hide at most ~10 N m) the residual is
+    the wind's: with ``a = (0, 0, a_z)`` it is ``a_z (-dF_y, dF_x)``, and across the flow
+    ``dF = 1/2 rho Cd pi r^2 |W| dw``, so the estimate ``w`` (world frame [m/s]) moves towards the
+    wind that explains it with time constant ``time_constant`` [s] (the gusts' is 2 s). It is held
+    while the thrusters work, so a failed thruster's torque is never taken for wind.
+    """
+
+    def __init__(self, vehicle: Vehicle, *, quiet_throttle: float = 0.05, time_constant: float = 1.0) -> None:
+        self.vehicle = vehicle
+        self.attach_B = np.array([0.0, 0.0, 0.5 * vehicle.size])
+        self.k = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2  # [m^2]
+        self.quiet_throttle = quiet_throttle
+        self.time_constant = time_constant
+        self.reset()
+
+    def reset(self) -> None:
+        #: Estimated wind, world frame [m/s].
+        self.wind_W = np.zeros(3)
+
+    @staticmethod
+    def density(h: float) -> float:
+        """Air density [kg/m^3] at altitude ``h`` [m] (the scenes' exponential atmosphere)."""
+        if h >= c.EXOSPHERE_ALTITUDE:
+            return 0.0
+        return c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
+
+    def _air(self, state: StateView) -> tuple[np.ndarray, np.ndarray, float]:
+        R = quat_to_matrix(state.q)  # world -> body
+        W = R @ (self.wind_W - state.v_W) - np.cross(state.omega_B, self.attach_B)
+        h = float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
+        return R, W, self.k * self.density(h) * float(np.linalg.norm(W))
+
+    def torque(self, state: StateView) -> np.ndarray:
+        """The canopy's torque at ``state`` with the estimated wind, body frame [N m]."""
+        _, W, s = self._air(state)
+        return np.cross(self.attach_B, s * W)
+
+    def learn(self, residual_B: np.ndarray, throttles: np.ndarray, state: StateView, dt: float) -> None:
+        """Move the wind estimate towards the wind that explains ``residual_B`` (body frame [N m],
+        the last period's), if the thrusters were quiet over that period (``throttles``)."""
+        if dt <= 0.0 or float(np.max(throttles, initial=0.0)) > self.quiet_throttle:
+            return
+        R, _, s = self._air(state)
+        if s <= 0.0:
+            return
+        a_z = float(self.attach_B[2])
+        dw_B = np.array([residual_B[1] / a_z, -residual_B[0] / a_z, 0.0]) / s
+        self.wind_W = self.wind_W + min(dt / self.time_constant, 1.0) * (R.T @ dw_B)
 
 
 class ThreeThrusterAllocation:
@@ -152,3 +238,95 @@ class ThreeThrusterAllocation:
         u = np.zeros(self.n)
         u[self.working] = np.clip(t, 0.0, 1.0)
         return u, saturated
+
+
+def _interval(t0: np.ndarray, d: np.ndarray, top: np.ndarray | None = None) -> tuple[float, float]:
+    """The range of ``s`` with every ``t0 + s d`` in [0, top] (top 1 if not given; empty: lo > hi)."""
+    lo, hi = -np.inf, np.inf
+    for j, (a, b) in enumerate(zip(t0, d)):
+        ub = 1.0 if top is None else float(top[j])
+        if b > 1e-12:
+            lo, hi = max(lo, -a / b), min(hi, (ub - a) / b)
+        elif b < -1e-12:
+            lo, hi = max(lo, (ub - a) / b), min(hi, -a / b)
+        elif a < -1e-12 or a > ub + 1e-12:
+            return np.inf, -np.inf
+    return lo, hi
+
+
+class SpinAllocation:
+    """Throttles for the three thrusters left when the lander spins about its axis.
+
+    Of the three, two (the *pair*, diagonal to each other) have yaw torques of one sign, the third
+    (the *lone* one) of the other. With no roll or pitch torque only the pair can fire, and the
+    pair alone spins the lander up (about 1.4 rad/s^2 at full throttle): on a long braking the spin
+    would grow past anything a 10 Hz law (and the simulator's 0.1 s step) follows. Spinning, the
+    lone thruster's own roll/pitch torque ``tau_L`` is fixed in the body and turns with it: its
+    mean over a turn is zero and it only makes the axis cone, by ``tau_L / ((I_t - I_z) Omega^2)``
+    [rad] (2 deg at 218 N m, 14 rad/s, 190 kg). So, spinning, the lone thruster may fire: the three
+    throttles solve exactly for the lift, the yaw torque (which holds the spin) and the roll/pitch
+    torque along the pair's differential axis ``e_P`` (which steers the spin axis); the torque
+    across it is the lone thruster's, left to the spin to average.
+    """
+
+    def __init__(self, vehicle: Vehicle, failed: int) -> None:
+        n = vehicle.n_thrusters
+        self.n = n
+        self.working = [j for j in range(n) if j != failed and vehicle.thrusters[j].enabled]
+        T = np.array([th.max_thrust for th in vehicle.thrusters])
+        tau = -vehicle.torque_arms() * T[:, None]  # (N, 3) body torque per unit throttle [N m]
+        fz = np.array([-th.direction_B[2] * th.max_thrust for th in vehicle.thrusters])  # [N] per unit throttle
+        signs = np.sign(tau[self.working, 2])
+        lone = [j for j, s in zip(self.working, signs) if np.sum(signs == s) == 1]
+        if len(self.working) != 3 or len(lone) != 1:
+            raise ValueError("SpinAllocation needs three thrusters left, two with yaw torques of one sign")
+        self.lone = lone[0]
+        self.pair = [j for j in self.working if j != self.lone]
+        d = tau[self.pair[0], :2] - tau[self.pair[1], :2]
+        #: The pair's differential torque axis (body x-y), the one roll/pitch direction held exactly.
+        self.e_P = d / float(np.linalg.norm(d))
+        #: Sign of the pair's yaw torque: the way the pair spins the lander.
+        self.pair_spin = float(np.sign(tau[self.pair[0], 2]))
+        M = np.vstack([tau[self.working, :2] @ self.e_P, fz[self.working], tau[self.working, 2]])
+        self.M_inv = np.linalg.inv(M)
+        self.fz = fz
+        self.tau = tau
+        #: Lift [N] with the three at full throttle (the spin then grows), and with zero yaw torque.
+        self.max_lift = float(fz[self.working].sum())
+        t0 = self.M_inv[:, 1]
+        lo, hi = _interval(np.zeros(3), t0)
+        self.max_lift_no_yaw = hi
+
+    def allocate(self, torque_p: float, lift: float, yaw: float, yaw_first: bool = False,
+                 lone_max: float = 1.0) -> tuple[np.ndarray, bool]:
+        """Throttles (all N, the failed one 0) for the torque ``torque_p`` [N m] along ``e_P``, the
+        body-z force ``lift`` [N] and the yaw torque ``yaw`` [N m]; lift before yaw unless ``yaw_first``,
+        both before ``torque_p``; the yaw also gives way to keep the lone thruster at or below
+        ``lone_max``. Also whether anything gave way."""
+        cP, cF, cY = self.M_inv[:, 0], self.M_inv[:, 1], self.M_inv[:, 2]
+        lift0, yaw0, tp0 = lift, yaw, torque_p
+        if lone_max < 1.0 and not yaw_first:
+            top = np.array([lone_max if j == self.lone else 1.0 for j in self.working])
+            lo, hi = _interval(lift * cF, cY, top)
+            if lo <= hi:
+                yaw = min(max(yaw, lo), hi)
+        if yaw_first:
+            lo, hi = _interval(yaw * cY, cF)
+            if lo > hi:
+                lo, hi = _interval(np.zeros(3), cY)
+                yaw = min(max(yaw, lo), hi)
+                lo, hi = _interval(yaw * cY, cF)
+            lift = min(max(lift, lo), hi)
+        else:
+            lo, hi = _interval(lift * cF, cY)
+            if lo > hi:
+                lo, hi = _interval(np.zeros(3), cF)
+                lift = min(max(lift, lo), hi)
+                lo, hi = _interval(lift * cF, cY)
+            yaw = min(max(yaw, lo), hi)
+        base = lift * cF + yaw * cY
+        lo, hi = _interval(base, cP)
+        torque_p = min(max(torque_p, lo), hi) if lo <= hi else 0.0
+        u = np.zeros(self.n)
+        u[self.working] = np.clip(base + torque_p * cP, 0.0, 1.0)
+        return u, bool(lift != lift0 or yaw != yaw0 or torque_p != tp0)

@@ -106,6 +106,7 @@ class GroundSpeedController(SumController):
         self.tilt_demand = 0.0
         self.tilt_clipped = False
         self.lift_force = 0.0
+        self.thrust_axis_W = np.zeros(3)
 
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
@@ -158,6 +159,7 @@ class GroundSpeedController(SumController):
         # Demand attitude: body z along f = a_h + lift up; body x as near east as possible.
         f = L.T @ np.array([a_h[0], a_h[1], lift])
         b3 = f / float(np.linalg.norm(f))
+        self.thrust_axis_W = b3  # wanted body z, world frame (a spinning lander steers its spin axis to it)
         x_ref = self.heading_axis(state, L)
         b1 = x_ref - float(x_ref @ b3) * b3
         b1 /= float(np.linalg.norm(b1))

@@ -14,7 +14,7 @@ PACKAGE = "mars_lander"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(include=["lander_sim*", "lander_autopilot*", "lander_tools*"]),
+    packages=find_packages(include=["lander_sim*", "lander_autopilot*", "lander_tools*", "lander_ros*"]),
     package_data={"lander_sim": ["scenes/*.yaml"], "lander_tools": ["live/web/*"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),

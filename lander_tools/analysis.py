@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_sim.physics import constants
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_tools import plotstyle as ps
@@ -119,7 +120,7 @@ class Flight:
             meta=dict(bag.meta),
         )
         for m in bag.messages("/lander/events"):
-            f.events.append((m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, int(m.kind), m.detail, list(m.values)))
+            f.events.append((stamp_to_seconds(m.header.stamp), int(m.kind), m.detail, list(m.values)))
         if "/autopilot/status" in bag:
             st = bag.series("/autopilot/status")
             f.status_t, f.status_saturated = st["t"], st["saturated"].astype(bool)

@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from lander_ros.stamps import stamp_to_seconds
+
 #: Storage formats a bag can be written in (``--storage``).
 STORAGES = ("mcap", "sqlite3")
 
@@ -174,7 +176,7 @@ class Bag:
         if self._clock is None:
             clock = self.topics.get("/clock")
             if clock is not None and clock.count:
-                sim = np.array([m.clock.sec + 1e-9 * m.clock.nanosec for m in clock.messages])
+                sim = np.array([stamp_to_seconds(m.clock) for m in clock.messages])
                 self._clock = (clock.t_bag_ns.astype(float), sim)
             else:
                 t0 = min((float(t.t_bag_ns[0]) for t in self.topics.values() if t.count), default=0.0)

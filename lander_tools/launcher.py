@@ -66,6 +66,7 @@ from typing import Any, TextIO
 import numpy as np
 import yaml
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_tools import child
 
 EXIT_OK = 0
@@ -601,13 +602,13 @@ class _Supervisor:
         self.last_answer = max(self.last_answer, int(msg.state_sequence))
 
     def _on_clock(self, msg: Any) -> None:
-        self.clock_t = msg.clock.sec + 1e-9 * msg.clock.nanosec
+        self.clock_t = stamp_to_seconds(msg.clock)
 
     def _on_state(self, msg: Any) -> None:
         self._count("/lander/state")
         self.state = msg
         self.states += 1
-        self.t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self.t = stamp_to_seconds(msg.header.stamp)
         self.last_state_wall = time.monotonic()
         self.progress.update(self.t, msg.altitude)
         # Nothing is applied at the end instant (the first at or after the duration) or later; the
@@ -631,7 +632,7 @@ class _Supervisor:
         from lander_sim.ros.flight_span import FlightEnd
 
         self._count("/lander/events")
-        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        t = stamp_to_seconds(msg.header.stamp)
         E = self.FlightEvent
         if msg.kind == E.FLIGHT_ENDED:
             try:

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lander_ros.stamps import stamp_to_seconds
+
 REPO = Path(__file__).resolve().parents[1]  # where `python -m lander_tools.cli` runs from
 
 #: What the benchmark records: the control loop and what it needs to measure it.
@@ -146,7 +148,7 @@ def loop_figures(bag_path: Path) -> LoopFigures:
     bag = read_bag(bag_path, list(TOPICS))
     st = bag.topics["/lander/state"]
     seq = np.array([m.sequence for m in st.messages], dtype=np.int64)
-    t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in st.messages])
+    t = np.array([stamp_to_seconds(m.header.stamp) for m in st.messages])
     rx = st.t_bag_ns.astype(np.float64) * 1e-9
     start = int(np.flatnonzero(seq == 1)[-1])  # the launcher's reset: the flight proper
     end_t = float(bag.meta.get("end_time", t[-1]))

@@ -285,7 +285,7 @@ def start_node(module: str, params: dict[str, object] | None = None, name: str |
 
 def stamp_seconds(stamp: Any) -> float:
     """A ``builtin_interfaces/Time`` as seconds: the nodes' own conversion, so tests compare like with like."""
-    from lander_autopilot.ros.convert import stamp_to_seconds
+    from lander_ros.stamps import stamp_to_seconds
 
     return stamp_to_seconds(stamp)
 

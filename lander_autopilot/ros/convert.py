@@ -22,18 +22,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_sim.physics.state import StateView
-
-_NS = 1_000_000_000
 
 
 class StateError(ValueError):
     """A received state cannot be flown on (non-finite field, zero quaternion, wrong thruster count)."""
-
-
-def stamp_to_seconds(stamp) -> float:
-    """A ``builtin_interfaces/Time`` as seconds (float) of sim time."""
-    return stamp.sec + stamp.nanosec / _NS
 
 
 def state_view(msg, n_thrusters: int | None = None) -> StateView:

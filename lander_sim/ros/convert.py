@@ -23,20 +23,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lander_ros.stamps import fill_stamp, sim_time_to_ns  # noqa: F401 - the sim shell's conversions, re-exported
 from lander_sim.physics import rotation
-
-_NS = 1_000_000_000
-
-
-def sim_time_to_ns(t: float) -> int:
-    """Sim time [s] as integer nanoseconds, rounded to nearest (ROS time resolution)."""
-    return int(round(t * 1e9))
-
-
-def fill_stamp(stamp, t: float) -> None:
-    """Write sim time ``t`` [s] into a ``builtin_interfaces/Time``."""
-    ns = sim_time_to_ns(t)
-    stamp.sec, stamp.nanosec = divmod(ns, _NS)
 
 
 def ros_orientation(q: Sequence[float]) -> tuple[float, float, float, float]:

@@ -51,6 +51,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_tools.live import views
 from lander_tools.live.link import (
     AUTOPILOT_NODE,
@@ -387,7 +388,7 @@ class LiveBridge:
 
         st = msg.header.stamp
         name = views.event_name(msg.kind)
-        self.ch_events.log({"t": st.sec + st.nanosec * 1e-9, "kind": name, "detail": msg.detail,
+        self.ch_events.log({"t": stamp_to_seconds(st), "kind": name, "detail": msg.detail,
                             "values": [float(v) for v in msg.values]})
         if msg.kind == FlightEvent.INPUT_REJECTED:
             with self._lock:

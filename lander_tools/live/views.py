@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world, matrix_to_quat
 from lander_sim.ros.markers import PLUME_LENGTH_PER_SIZE
@@ -51,7 +52,7 @@ def state_record(msg: Any, demand_altitude: float | None, controller: str, pause
     st = msg.header.stamp
     v, w = msg.velocity, msg.angular_velocity
     return {
-        "t": st.sec + st.nanosec * 1e-9,
+        "t": stamp_to_seconds(st),
         "sequence": int(msg.sequence),
         "altitude": msg.altitude,
         "climb_rate": msg.climb_rate,

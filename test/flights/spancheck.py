@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_sim.ros.flight_span import FlightEnd
 
 FLIGHT_ENDED = 12  # lander_interfaces/msg/FlightEvent.msg
@@ -36,7 +37,7 @@ class Span:
 
 
 def _t(stamp: Any) -> float:
-    return stamp.sec + 1e-9 * stamp.nanosec
+    return stamp_to_seconds(stamp)
 
 
 def read_span(bag: Path) -> Span:

@@ -10,6 +10,7 @@ from pathlib import Path
 from lander_autopilot.controllers import Demand, make_controller
 from lander_autopilot.ros.config import scene_autopilot
 from lander_autopilot.ros.convert import state_view
+from lander_ros.stamps import stamp_to_seconds
 from lander_sim.scenes import load_scene
 from lander_tools.launcher import Action, plan_stops
 from lander_tools.scripted import parse_script
@@ -46,7 +47,7 @@ def test_a_demand_step_at_speed_0_is_in_force_from_the_first_control_instant_at_
     states = bag.messages("/lander/state")
     start = max(i for i, s in enumerate(states) if s.sequence == 1)
     states = states[start:]
-    t_last = states[-1].header.stamp.sec + 1e-9 * states[-1].header.stamp.nanosec
+    t_last = stamp_to_seconds(states[-1].header.stamp)
     assert math.isclose(t_last, result.sim_time, abs_tol=1e-9), "the sim ran past the end"
     answers = {m.state_sequence: list(m.throttles) for m in bag.messages("/lander/throttle")}
 

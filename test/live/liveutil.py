@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 import rosutil
+from lander_ros.stamps import stamp_to_seconds
 from lander_tools.live.wsclient import FoxgloveClient as FoxgloveTestClient  # noqa: F401 - for the tests
 from lander_tools.live.wsclient import wait_until
 
@@ -51,5 +52,5 @@ def wait_flight_running(fly: rosutil.ChildProcess, timeout: float = 90.0, after_
         times: list[float] = []
         wait_until(lambda: alive() or "/lander/state" in dict(link.topics()), timeout, "the state topic")
         link.subscribe("/lander/state", "lander_interfaces/msg/LanderState",
-                       lambda m: times.append(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec), depth=10)
+                       lambda m: times.append(stamp_to_seconds(m.header.stamp)), depth=10)
         wait_until(lambda: alive() or (times and times[-1] > after_t), timeout, f"a state after t = {after_t} s")

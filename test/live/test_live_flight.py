@@ -21,6 +21,7 @@ from typing import Any
 
 import pytest
 
+from lander_ros.stamps import stamp_to_seconds
 from lander_tools.cli import main as lander
 
 from .liveutil import (
@@ -304,7 +305,7 @@ def test_pause_step_resume_reset(live: dict[str, Any], capfd: pytest.CaptureFixt
     with FlightLink("test_verbs_reset") as link:
         states: list[tuple[int, float]] = []
         link.subscribe("/lander/state", "lander_interfaces/msg/LanderState",
-                       lambda m: states.append((m.sequence, m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec)))
+                       lambda m: states.append((m.sequence, stamp_to_seconds(m.header.stamp))))
         wait_until(lambda: states, 30.0, "a state")
         code, out, err = run(capfd, "reset")
         assert code == 0, err

@@ -66,7 +66,7 @@ from lander_autopilot.ros.config import (
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
-from lander_sim.ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
+from lander_ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
@@ -277,7 +277,7 @@ class AutopilotNode(Node):
     def _srv_matched(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Publishers matched by the state reader (``sub:/lander/state``) and subscriptions matched by
         the throttle writer (``/lander/throttle``), as the sim's ``/lander/subscribers`` says them."""
-        from lander_sim.ros.flight_span import format_matched
+        from lander_ros.flight_span import format_matched
 
         response.success = True
         response.message = format_matched({"sub:/lander/state": self._sub_state.get_publisher_count(),

@@ -14,6 +14,9 @@ One control tick (at ``publish_rate`` of sim time, paced to the wall clock at
     [lockstep gate] -> staleness check -> Simulation.step(k) -> events -> publish
     (/clock, /lander/state, odometry, pose, TF, markers, events)
 
+Whether a tick may run and what pause, resume, step and the end do is decided by the gate
+(``lander_sim.ros.gate``, plain Python): the node feeds it every event and does what it answers.
+
 No physics and no control law here: messages, parameters, services and time are
 translated to and from the core (see docs/sim_node.md).
 """
@@ -37,6 +40,19 @@ from visualization_msgs.msg import MarkerArray
 
 from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
+from lander_ros.delivery import (
+    FLUSH_TIMEOUT,
+    OUTPUT_QOS,
+    events_executor,
+    flush,
+    run_node_process,
+)
+from lander_ros.flight_span import (
+    COUNTED_TOPICS,
+    FlightEnd,
+    format_matched,
+    parse_end_on,
+)
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import (
@@ -47,20 +63,8 @@ from lander_sim.ros.config import (
     check_parameter,
     check_params_file,
 )
-from lander_sim.ros.delivery import (
-    FLUSH_TIMEOUT,
-    OUTPUT_QOS,
-    events_executor,
-    flush,
-    run_node_process,
-)
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
-from lander_sim.ros.flight_span import (
-    COUNTED_TOPICS,
-    FlightEnd,
-    format_matched,
-    parse_end_on,
-)
+from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOutcome
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
@@ -78,8 +82,6 @@ _INPUT_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE, histo
 #: tick would cost a third of the speed; a pass drains everything pending (see _serve), so a
 #: request waits at most this long plus one tick.
 _BUSY_SPIN_INTERVAL = 0.001
-#: Float rounding of sim times compared against a requested instant [s].
-_TIME_EPS = 1e-9
 #: Most executor passes in one drain (a flood of inputs must not stall the simulation).
 _MAX_DRAIN_PASSES = 50
 #: Wall period [s] of re-reading the subscriber counts of the optional outputs (odometry, pose, markers).
@@ -103,30 +105,22 @@ class SimNode(Node):
             reason = check_parameter(spec.name, self.get_parameter(spec.name).value)
             if reason is not None:
                 raise ConfigError(reason)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._after_set_parameters)
 
         self.health = NodeHealth()
         self._cache_parameters()
-        self._pause_at = float(self._param("pause_at"))  # consumed (set to -1) when reached
-        self._paused = bool(self._param("start_paused"))
+        #: Running, paused, held at pause_at, awaiting the lockstep answer or ended (lander_sim.ros.gate):
+        #: the node feeds it every event and advances or publishes only as it answers.
+        self.gate = Gate(self._gate_settings(), start_paused=bool(self._param("start_paused")))
         self._seq = 0  # sequence of the last state published since the last reset
-        self._published_t: float | None = None  # sim time of that state (None: none yet since the reset)
-        self._withheld = False  # paused at pause_at: the state of the current instant is not out yet
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
         self._want_odom = self._want_pose = self._want_markers = False
         self._state_subscribers = 0  # subscriptions matched by the state publisher (diagnostics)
         self._next_sub_check = 0.0
-        self._awaiting = 0  # lockstep: state sequence whose answer is awaited (0: none)
-        self._await_since = 0.0
-        self._answered = True
         self._cmd_t: float | None = None  # sim time the held command was accepted
         self._stale = False
         self._last_marker_wall = -math.inf
         self._next_diag_wall = time.monotonic()
         self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
-        self._started = not self._paused  # a flight began (reset, resume, step, run_until or not start_paused)
-        self._ended = False  # the flight reached its end instant (end_time / end_on): no advancing until a reset
         #: Messages published per output topic since the last reset (reported by FLIGHT_ENDED).
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)
 
@@ -167,13 +161,16 @@ class SimNode(Node):
         self._tf_msg = TransformStamped()
         self._apply_frames()
         self._markers = MarkerBuilder(self._param("world_frame"), self._param("trajectory_length"))
+        # Parameter changes are taken only now that everything they act on exists.
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
 
-        if not self._paused:
+        if self.gate.mode is Mode.RUNNING:
             self._publish_outputs()  # state 1 at t = 0: the controller's first question in lockstep
         # Started paused: state 1 goes out with the first reset, resume or step (never twice).
         self.get_logger().info(
             f"scene {self.sim.scene.name!r}: dt {self.sim.dt} s, {self._k} steps per tick, "
-            f"speed {self._param('speed')}, lockstep {self._param('lockstep')}, paused {self._paused}"
+            f"speed {self._param('speed')}, lockstep {self._param('lockstep')}, paused {self.gate.mode.paused}"
         )
 
     # --- main loop ---------------------------------------------------------------------------
@@ -238,40 +235,33 @@ class SimNode(Node):
     def _loop_once(self) -> float:
         """Advance one tick if one is due; return how long the executor may block [s]."""
         now = time.monotonic()
+        mode = self.gate.mode
         # After the end nothing more (its counts are final); before the first flight only if asked.
-        if now >= self._next_diag_wall and not self._ended and (self._started or self._param("idle_diagnostics")):
+        if (now >= self._next_diag_wall and mode is not Mode.ENDED
+                and (mode is not Mode.NOT_STARTED or self._param("idle_diagnostics"))):
             self._publish_diagnostics(now)
         if now >= self._next_sub_check:
             self._check_subscribers(now)
-        if self._paused:
-            return _IDLE_WAIT
-        if self._pause_due():
-            self._paused, self._pause_at = True, -1.0  # already there (its state is out): stay
-            return _IDLE_WAIT
-        if self._lockstep and not self._answered:
-            waited = now - self._await_since
-            timeout = self._lockstep_timeout
-            if waited < timeout:
-                return min(_IDLE_WAIT, timeout - waited)
+        poll = self.gate.poll(now, self.sim.t)
+        if poll.timed_out:
             self.health.lockstep_timeouts += 1
             self.get_logger().warning(
-                f"lockstep: no answer to state {self._awaiting} within {timeout} s; advancing",
+                f"lockstep: no answer to state {poll.timed_out} within {self.gate.settings.lockstep_timeout} s; advancing",
                 throttle_duration_sec=1.0,
             )
+        if not poll.advance:
+            return min(_IDLE_WAIT, poll.wait)
         wait = self.pacer.wait_time(self.sim.t + self._k * self.sim.dt)
         if wait > 0.0:
             return min(wait, _IDLE_WAIT)
         self._tick(self._k, may_pause=True)
         return 0.0
 
-    def _pause_due(self) -> bool:
-        """``pause_at`` is set and the simulation has reached it."""
-        return self._pause_at >= 0.0 and self.sim.t >= self._pause_at - _TIME_EPS
-
     def _tick(self, n_steps: int, may_pause: bool = False) -> None:
-        """The pipeline of one control period: staleness -> physics -> publish.
+        """The pipeline of one control period: staleness -> physics -> publish what the gate answers.
 
-        With ``may_pause`` (the running loop) a tick reaching ``pause_at`` publishes /clock but
+        The end instant publishes its state, then the end (an end wins over a pause there). With
+        ``may_pause`` (the running loop) a tick reaching ``pause_at`` publishes /clock but
         holds the state back and pauses: whoever drives the timeline acts at exactly this instant
         (inputs take effect from the step leaving it, and a controller's answer to this state
         already sees them); resume then publishes the state.
@@ -282,13 +272,13 @@ class SimNode(Node):
         self.health.step_wall_s += time.perf_counter() - w0
         self.health.physics_steps += n_steps
         self.health.ticks += 1
-        reason = self._end_reason() if self._end_time >= 0.0 or self._end_on else None
-        if reason is not None:  # the end instant: its state goes out now (an end wins over a pause there)
+        sim = self.sim
+        outcome = self.gate.ticked(sim.t, None if sim.flying else sim.phase_name, honour_pause_at=may_pause)
+        if outcome is TickOutcome.END:
             self._publish_outputs()
-            self._end_flight(reason)
+            self._end_flight(str(self.gate.end_reason))
             return
-        if may_pause and self._pause_due():
-            self._paused, self._pause_at, self._withheld = True, -1.0, True
+        if outcome is TickOutcome.HOLD:
             convert.fill_stamp(self._clock_msg.clock, self.sim.t)
             self._pub_clock.publish(self._clock_msg)
             self._counts["/clock"] += 1
@@ -298,19 +288,10 @@ class SimNode(Node):
             return
         self._publish_outputs()
 
-    def _end_reason(self) -> str | None:
-        """Why the instant just published ends the flight (``end_on`` touchdown, ``end_time``), or None."""
-        if not self.sim.flying and self.sim.phase_name in self._end_on:
-            return self.sim.phase_name
-        if self._end_time >= 0.0 and self.sim.t >= self._end_time - _TIME_EPS:
-            return "time-limit"
-        return None
-
     def _end_flight(self, reason: str) -> None:
         """Stop at the end instant (its state is out): a last /diagnostics, then FLIGHT_ENDED with the
-        counts of everything published since the reset (lander_sim.ros.flight_span), then nothing
+        counts of everything published since the reset (lander_ros.flight_span), then nothing
         more until a reset; so a recording ends here whatever its launcher does next."""
-        self._ended, self._paused, self._pause_at = True, True, -1.0
         self._publish_diagnostics(time.monotonic())
         self._counts["/lander/events"] += 1  # the FLIGHT_ENDED itself
         end = FlightEnd(self.sim.t, reason, dict(self._counts))
@@ -324,7 +305,7 @@ class SimNode(Node):
             k = min(self._k, n_steps)
             self._tick(k)
             n_steps -= k
-            if self._ended or (stop_on_touchdown and not self.sim.flying):
+            if self.gate.mode is Mode.ENDED or (stop_on_touchdown and not self.sim.flying):
                 break
         self.pacer.restart()
 
@@ -351,7 +332,6 @@ class SimNode(Node):
         one reset epoch sequences and stamps both strictly increase (docs/sim_node.md).
         ``clock=False``: /clock already shows this instant (a state held back at ``pause_at``).
         """
-        self._withheld = False
         snap = self.sim.readout()
         counts = self._counts
         if clock:
@@ -359,14 +339,12 @@ class SimNode(Node):
             self._pub_clock.publish(self._clock_msg)
             counts["/clock"] += 1
         self._seq += 1
-        self._published_t = snap.t
         convert.fill_state(self._state_msg, self._seq, snap)
         now = time.monotonic()
         self.health.state_published(self._seq, now)
         self._pub_state.publish(self._state_msg)
         counts["/lander/state"] += 1
-        if self._lockstep:
-            self._awaiting, self._answered, self._await_since = self._seq, False, now
+        self.gate.published(self._seq, now)
         if self._want_odom:
             convert.fill_odometry(self._odom_msg, snap)
             self._pub_odom.publish(self._odom_msg)
@@ -386,11 +364,10 @@ class SimNode(Node):
             counts["/lander/markers"] += 1
         self._publish_core_events()
 
-    def _publish_pending(self) -> None:
-        """Before advancing from a service: the current instant's state, if it is not out yet."""
-        self._started = True
-        if self._published_t is None or self._withheld:
-            self._publish_outputs(clock=self._published_t is None)
+    def _publish(self, what: Publish) -> None:
+        """Publish what the gate answered: the current instant's state when it is not out yet."""
+        if what is not Publish.NOTHING:
+            self._publish_outputs(clock=what is Publish.STATE_AND_CLOCK)
 
     def _check_subscribers(self, now: float) -> None:
         """Re-read who listens to the optional outputs (a graph query per tick would cost ~7 us)."""
@@ -427,7 +404,7 @@ class SimNode(Node):
             extra=self.sim.health_values()
             | {
                 "sim_time": repr(self.sim.t),
-                "paused": str(self._paused),
+                "paused": str(self.gate.mode.paused),
                 "steps_per_tick": str(self._k),
                 "pacer_overruns": str(self.pacer.overruns),
                 # Matched by this node's writer (not just seen in the graph): a start-up handshake
@@ -458,8 +435,7 @@ class SimNode(Node):
         self._cmd_t, self._stale = self.sim.t, False
         if msg.state_sequence != 0:
             self.health.command_received(msg.state_sequence, time.monotonic())
-            if msg.state_sequence == self._awaiting:
-                self._answered = True
+            self.gate.answered(msg.state_sequence)
 
     def _on_wind(self, msg: Vector3Stamped) -> None:
         frame = msg.header.frame_id
@@ -503,32 +479,26 @@ class SimNode(Node):
     def _srv_pause(self, request: Trigger.Request, response: Trigger.Response):
         # Nothing is published: the last state (at every tick boundary) already is the pause instant.
         # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
-        was = "paused" if self._paused else "running"
-        self._paused = True
+        was = "paused" if self.gate.pause().paused else "running"
         response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was})"
         return response
 
     def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):
-        if self._ended:
-            return self._srv_fail("resume", response, self._ended_message())
-        self._paused, self._started = False, True
+        refusal = self.gate.refusal(Event.RESUME)
+        if refusal is not None:
+            return self._srv_fail("resume", response, refusal.message(self.sim.t))
+        # Started paused: state 1, the controller's first question; held at pause_at: that instant's
+        # state, now that inputs are in; awaiting an answer: the lockstep wait counts from here.
+        pending = self.gate.resume(time.monotonic())
         self._check_subscribers(time.monotonic())  # who listens now gets this instant's odometry, pose, markers
         self.pacer.restart()
-        if self._published_t is None:
-            self._publish_outputs()  # started paused: state 1, the controller's first question
-        elif self._withheld:
-            self._publish_outputs(clock=False)  # the pause_at instant's state, now that inputs are in
-        elif self._lockstep and not self._answered:
-            self._await_since = time.monotonic()  # the lockstep wait counts from the resume, not the pause
+        self._publish(pending)
         response.success, response.message = True, f"resumed at t = {self.sim.t!r} s"
         return response
 
-    def _ended_message(self) -> str:
-        return f"the flight ended at t = {self.sim.t!r} s; reset or load a scene to fly again"
-
     def _srv_subscribers(self, request: Trigger.Request, response: Trigger.Response):
         """Subscriptions matched by each output's writer, and publishers matched by each input's
-        reader as ``sub:TOPIC`` (lander_sim.ros.flight_span.format_matched)."""
+        reader as ``sub:TOPIC`` (lander_ros.flight_span.format_matched)."""
         pubs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
                 self._pub_events, self._pub_diag)
         matched = {p.topic_name: p.get_subscription_count() for p in pubs}
@@ -538,16 +508,14 @@ class SimNode(Node):
         return response
 
     def _srv_step(self, request: StepSimulation.Request, response: StepSimulation.Response):
-        if self._ended:
+        refusal = self.gate.refusal(Event.STEP)
+        if refusal is not None:
             response.sim_time = self.sim.t
-            return self._srv_fail("step", response, self._ended_message())
-        if not self._paused:
-            response.sim_time = self.sim.t
-            return self._srv_fail("step", response, "step needs a paused simulation: call /lander/pause first")
+            return self._srv_fail("step", response, refusal.message(self.sim.t))
         if request.steps == 0:
             response.sim_time = self.sim.t
             return self._srv_fail("step", response, "steps = 0: ask for at least one physics step")
-        self._publish_pending()
+        self._publish(self.gate.advance())  # a pending state is the step's start
         self._advance(int(request.steps))
         response.success, response.sim_time = True, self.sim.t
         response.message = f"advanced {request.steps} steps of {self.sim.dt} s"
@@ -556,15 +524,16 @@ class SimNode(Node):
     def _srv_run_until(self, request: RunUntil.Request, response: RunUntil.Response):
         target = request.sim_time
         response.sim_time_reached = self.sim.t
-        if self._ended:
-            return self._srv_fail("run_until", response, self._ended_message())
+        refusal = self.gate.refusal(Event.RUN_UNTIL)
+        if refusal is not None:
+            return self._srv_fail("run_until", response, refusal.message(self.sim.t))
         if not math.isfinite(target) or target <= self.sim.t:
             return self._srv_fail(
                 "run_until", response, f"sim_time = {target!r} must be finite and later than now ({self.sim.t!r} s)"
             )
         # Whole steps, the last one reaching or passing the target (the 1e-9 absorbs float rounding of t/dt).
         n = max(1, math.ceil((target - self.sim.t) / self.sim.dt - 1e-9))
-        self._publish_pending()
+        self._publish(self.gate.advance())  # a pending state is the start
         self._advance(n, stop_on_touchdown=True)
         response.success, response.sim_time_reached = True, self.sim.t
         response.message = f"reached t = {self.sim.t!r} s, phase {self.sim.phase_name}"
@@ -591,14 +560,20 @@ class SimNode(Node):
 
     def _cache_parameters(self) -> None:
         """Parameters read every tick, as attributes (``get_parameter`` costs ~3 us a call, measured)."""
-        self._lockstep = bool(self._param("lockstep"))
-        self._lockstep_timeout = float(self._param("lockstep_timeout"))
         self._command_timeout = float(self._param("command_timeout"))
         self._publish_tf = bool(self._param("publish_tf"))
         self._marker_period = 1.0 / float(self._param("marker_rate"))
         self._world_frame = str(self._param("world_frame"))
-        self._end_time = float(self._param("end_time"))
-        self._end_on = parse_end_on(self._param("end_on"))
+
+    def _gate_settings(self) -> GateSettings:
+        """The parameters the gate reads (lockstep, pause_at, the end)."""
+        return GateSettings(
+            lockstep=bool(self._param("lockstep")),
+            lockstep_timeout=float(self._param("lockstep_timeout")),
+            pause_at=float(self._param("pause_at")),
+            end_time=float(self._param("end_time")),
+            end_on=parse_end_on(self._param("end_on")),
+        )
 
     def set_parameters(self, parameter_list):
         """rclpy's ``set_parameters``, with every refused parameter counted and announced."""
@@ -625,8 +600,6 @@ class SimNode(Node):
         """One rejection per refused request, of kind ``parameter.<name>`` (``parameter.undeclared``
         for a name the node does not have: the kinds in the diagnostics stay a bounded set)."""
         self._callbacks += 1
-        if not hasattr(self, "_pub_events"):
-            return  # still constructing: a bad override stops the node (ConfigError) instead
         name = params[0].name if params else ""
         self._reject(f"parameter.{name if self.has_parameter(name) else 'undeclared'}", reason)
 
@@ -644,18 +617,13 @@ class SimNode(Node):
 
     def _after_set_parameters(self, params) -> None:
         names = {p.name for p in params}
-        if not hasattr(self, "pacer"):
-            return  # still constructing
         self._cache_parameters()
-        if "pause_at" in names:
-            self._pause_at = float(self._param("pause_at"))
+        self.gate.parameters_changed(self._gate_settings(), names)  # re-arms pause_at; lockstep waits anew
         if names & {"publish_rate"}:
             self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
             self.pacer.set_period(self._k * self.sim.dt)
         if "speed" in names:
             self.pacer.set_speed(self._param("speed"))
-        if "lockstep" in names:
-            self._answered = True  # switching lockstep on waits from the next published state
         if "stabiliser" in names:
             self._apply_stabiliser(self.sim)
         if names & {"world_frame", "body_frame"}:
@@ -695,18 +663,16 @@ class SimNode(Node):
         controller sees the sequence fall and clears its memory).
         """
         self._seq = 0
-        self._published_t = None
-        self._withheld = False
-        self._ended, self._started = False, True
+        pending = self.gate.reset()  # running stays running; paused, held or ended: paused
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
         self._check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()
-        self._cmd_t, self._stale, self._answered = None, False, True
+        self._cmd_t, self._stale = None, False
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer.set_period(self._k * self.sim.dt)
         self._markers.clear_trajectory()
         self.health.restart_window(self.sim.t)
-        self._publish_outputs()
+        self._publish(pending)
 
 
 def _check_params_files(argv: list[str]) -> None:

@@ -568,7 +568,7 @@ class _Supervisor:
         self.states = 0
         self.t = 0.0
         self.last_state_wall = time.monotonic()
-        #: The sim's FLIGHT_ENDED, decoded (lander_sim.ros.flight_span.FlightEnd): the flight is over.
+        #: The sim's FLIGHT_ENDED, decoded (lander_ros.flight_span.FlightEnd): the flight is over.
         self.flight_end: Any = None
         #: Named values of the LANDED / CRASHED event (t_impact [s], descent_rate [m/s], ...).
         self.touchdown: dict[str, float] = {}
@@ -629,7 +629,7 @@ class _Supervisor:
             self._send_throttle(held.value, 0)
 
     def _on_event(self, msg: Any) -> None:
-        from lander_sim.ros.flight_span import FlightEnd
+        from lander_ros.flight_span import FlightEnd
 
         self._count("/lander/events")
         t = stamp_to_seconds(msg.header.stamp)
@@ -842,7 +842,7 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
     """Per sim topic, the subscriptions its writer must have matched before the flight starts:
     this launcher's, the autopilot's and the recorder's (``sub:TOPIC``: publishers the sim's own
     subscription to TOPIC must have matched)."""
-    from lander_sim.ros.flight_span import COUNTED_TOPICS
+    from lander_ros.flight_span import COUNTED_TOPICS
 
     sup = f.sup
     assert sup is not None
@@ -867,7 +867,7 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
 def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
     """Per topic this process subscribes to (recorder, launcher), the publishers it must have
     matched: the sim's outputs, the autopilot's and this launcher's own."""
-    from lander_sim.ros.flight_span import COUNTED_TOPICS
+    from lander_ros.flight_span import COUNTED_TOPICS
 
     pubs = {t: 1 for t in COUNTED_TOPICS}
     pubs.update({"/lander/wind": 1, "/lander/demand_altitude": 1, "/lander/throttle": 1})
@@ -887,7 +887,7 @@ def wait_until_matched(f: LaunchedFlight) -> None:
     entry in :func:`expected_subscribers`."""
     from std_srvs.srv import Trigger
 
-    from lander_sim.ros.flight_span import parse_matched
+    from lander_ros.flight_span import parse_matched
 
     sup = f.sup
     assert sup is not None

@@ -18,7 +18,7 @@ topic (``/lander/demand_altitude``) is recorded from the moment the recorder is 
 The recorder runs in a node and executor thread of its own (the C++
 EventsExecutor where available), so it keeps up with the full stack at speed 0
 whatever its owner's thread does; the nodes' own deep writer histories
-(``lander_sim.ros.delivery``) cover the moments it is descheduled.
+(``lander_ros.delivery``) cover the moments it is descheduled.
 
 The bag is MCAP by default (each connection's message definition embedded as
 the schema, so any MCAP reader can decode it) or sqlite3 on request. It is
@@ -125,7 +125,7 @@ class Recorder:
     def __init__(self, owner: Any, config: RecorderConfig, discovery_period: float = 0.1, hold: bool = False) -> None:
         import rclpy
 
-        from lander_sim.ros.delivery import events_executor
+        from lander_ros.delivery import events_executor
         from lander_tools.bagio import lander_typestore
 
         context = getattr(owner, "context", owner)

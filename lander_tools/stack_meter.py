@@ -137,7 +137,7 @@ class LoopFigures:
     latency_ms_max: float
     window_wall: tuple[float, float]
     #: Longest gap between two states' receive times at the recorder while flying [ms]: the
-    #: longest stall a writer history must outlast (rate x stall, lander_sim.ros.delivery).
+    #: longest stall a writer history must outlast (rate x stall, lander_ros.delivery).
     rx_gap_ms_max: float = float("nan")
 
 

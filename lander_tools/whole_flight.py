@@ -102,7 +102,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             on_started: Callable[[], None] | None) -> int:
     from std_srvs.srv import Trigger
 
-    from lander_sim.ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched
+    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched
     from lander_tools.live.link import AUTOPILOT_NODE, SIM_NODE, FlightLink, NoFlight
     from lander_tools.recorder import Recorder
 
@@ -231,7 +231,7 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
     (``/autopilot/matched``), so that state 1 of the reset reaches the autopilot too."""
     from std_srvs.srv import Trigger
 
-    from lander_sim.ros.flight_span import parse_matched
+    from lander_ros.flight_span import parse_matched
     from lander_tools.live.link import AUTOPILOT_NODE
 
     deadline = time.monotonic() + MATCH_TIMEOUT

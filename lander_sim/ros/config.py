@@ -90,7 +90,7 @@ def _positive_int(v: Any) -> str | None:
 
 
 def _end_on(v: Any) -> str | None:
-    from lander_sim.ros.flight_span import parse_end_on
+    from lander_ros.flight_span import parse_end_on
 
     if not isinstance(v, str):
         return "must be a string"

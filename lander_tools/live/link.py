@@ -77,7 +77,7 @@ class FlightLink:
         import rclpy
         from rclpy.context import Context
 
-        from lander_sim.ros.delivery import events_executor
+        from lander_ros.delivery import events_executor
 
         self._own_context = context is None
         self.context = Context() if context is None else context

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from lander_ros.flight_span import FlightEnd
 from lander_ros.stamps import stamp_to_seconds
-from lander_sim.ros.flight_span import FlightEnd
 
 FLIGHT_ENDED = 12  # lander_interfaces/msg/FlightEvent.msg
 #: Float rounding of a sim time through a ROS stamp (integer ns) [s].

@@ -44,7 +44,7 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
     # watch + autopilot + recorder on the state; watch + sim + recorder on the command.
     watch.wait_graph({"/lander/state": 3, "/lander/throttle": 3, "/autopilot/status": 2},
                      {"/lander/throttle": 2}, services=("reset", "resume"))
-    from lander_sim.ros.flight_span import parse_matched
+    from lander_ros.flight_span import parse_matched
 
     closed = 0
     for _attempt in range(6):
@@ -178,7 +178,7 @@ def _payloads(bag: Path) -> dict[str, list[bytes]]:
 def _mask_wall_paced_counts(payload: bytes) -> bytes:
     """A FlightEvent payload, with FLIGHT_ENDED's counts of WALL_PACED topics set to -1 (re-serialised);
     any other event unchanged."""
-    from lander_sim.ros.flight_span import COUNTED_TOPICS
+    from lander_ros.flight_span import COUNTED_TOPICS
     from lander_tools.bagio import lander_typestore
 
     ts = lander_typestore()

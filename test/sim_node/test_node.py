@@ -404,7 +404,7 @@ def test_the_flight_ends_by_itself_at_end_time_with_the_counts_of_what_it_publis
     the reset, then nothing; resume is refused until a reset (docs/sim_node.md, "A flight's span")."""
     from std_srvs.srv import Trigger
 
-    from lander_sim.ros.flight_span import FlightEnd, parse_matched
+    from lander_ros.flight_span import FlightEnd, parse_matched
 
     _load(probe, scenes["vertical"])
     probe.wait_for(lambda: bool(probe.clocks) and probe.clocks[-1] == 0, 10.0, "the load's clock")  # not counted below

@@ -28,7 +28,7 @@ def test_lander_record_writes_every_state_and_closes_when_the_watched_node_leave
     from std_srvs.srv import Trigger
 
     from lander_interfaces.srv import Reset
-    from lander_sim.ros.flight_span import parse_matched
+    from lander_ros.flight_span import parse_matched
 
     # Seen in the graph is not yet matched by the sim's writers: a state published before the match
     # is not delivered (volatile). Ask the sim until its writers have matched both readers.

@@ -1,6 +1,7 @@
 """Control design: linear models of the lander, controllability, pole placement and LQR.
 
-Equation numbers refer to ``extended-mars-lander-2-control.md``. Modules:
+Equation numbers refer to "The Extended Mars Lander, Exercise 2: Control" (the control reference;
+docs/architecture.md, "References"). Modules:
 
 * :mod:`.altitude`       eq 9-17: vertical model, hover throttle (eq 14)
 * :mod:`.attitude`       eq 23, 25, 26, 28: attitude model from a :class:`Vehicle`

@@ -1,6 +1,7 @@
 """Rotation algebra: quaternions and ZXZ Euler angles, in the reference's convention.
 
-Equation numbers refer to ``extended-mars-lander-1-dynamics.md``.
+Equation numbers refer to "The Extended Mars Lander, Exercise 1: Euler's equations and quaternions"
+(the dynamics reference; docs/architecture.md, "References").
 
 Conventions (fixed for the whole project):
 

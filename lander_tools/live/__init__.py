@@ -1,4 +1,4 @@
-"""Watch and steer a running flight live (issue 15): Foxglove bridge, student page, CLI verbs.
+"""Watch and steer a running flight live (docs/live.md): Foxglove bridge, student page, CLI verbs.
 
 * :mod:`.views`   what the channels show, from a state (plain numpy: frames, trail, plumes)
 * :mod:`.link`    a ROS client of the flight (services, parameters, topics): the verbs and the bridge

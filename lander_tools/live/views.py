@@ -8,7 +8,7 @@ The bridge (:mod:`lander_tools.live.bridge`) turns these into foxglove messages.
   straight below the first position seen, z up (radial), so the 3-D view works with small
   numbers (a float32 renderer at 3.4e6 m would quantise to ~0.25 m).
 * ``base_link``: the body frame; the core's ``q = (s, x, y, z)`` maps world to body
-  (extended-mars-lander-1-dynamics, eq 12-13), which read actively is the orientation of
+  (dynamics reference, eq 12-13), which read actively is the orientation of
   ``base_link`` in ``mars`` (the conversion is :func:`lander_sim.ros.convert.ros_orientation`).
 
 Thrust plumes follow the markers of the sim node (:mod:`lander_sim.ros.markers`): from the point
@@ -47,7 +47,7 @@ def state_record(msg: Any, demand_altitude: float | None, controller: str, pause
     """The ``/live/state`` JSON record of one ``LanderState`` (SI units; frames in the names).
 
     ``t`` is the state's sim time [s]; ``euler_zxz`` (phi, theta, psi) [rad] per
-    extended-mars-lander-1-dynamics eq 3; ``omega_B`` body rates [rad/s]; ``velocity_W`` [m/s].
+    dynamics reference eq 3; ``omega_B`` body rates [rad/s]; ``velocity_W`` [m/s].
     """
     st = msg.header.stamp
     v, w = msg.velocity, msg.angular_velocity

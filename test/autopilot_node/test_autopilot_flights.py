@@ -116,7 +116,7 @@ def test_combined_law_with_canted_thrusters_holds_scenario_7_hover(flight):
     assert len(late) >= 95, f"only {len(late)} states in [30, 40] s: the loop did not run at the control rate"
     alt_err = max(abs(s.altitude - 500.0) for s in late)
     tilt = max(tilt_deg(s) for s in late)
-    # The acceptance numbers; the linear design predicts errors decaying as e^{-0.9 t}
+    # The hover's required figures; the linear design predicts errors decaying as e^{-0.9 t}
     # from ~50 m and ~1 rad, i.e. far below these bounds after 30 s.
     assert alt_err < 0.5, f"altitude error {alt_err:.3f} m after 30 s"
     assert tilt < 0.5, f"tilt {tilt:.3f} deg after 30 s"

@@ -4,7 +4,7 @@ Both loops read the state every 0.1 s, run the law and hold its throttles over o
 compiled loop does it with no Python call per step. The two differ only in the summation order of
 the attitude law's ``K e`` (a few ulps per step), which the stable closed loop does not amplify:
 each part of the state (position, velocity, quaternion, body rate, fuel) agrees to 1e-9 of its
-size over the whole 60 s flight (the issue's bound; measured ~1e-14).
+size over the whole 60 s flight (the bound the compiled loop is held to, docs/control.md; measured ~1e-14).
 """
 from __future__ import annotations
 

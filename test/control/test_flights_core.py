@@ -56,7 +56,7 @@ def _scene_at(name, altitude=500.0, E=UPRIGHT, omega=(0.0, 0.0, 0.0), vehicle=No
 def test_combined_law_holds_scenario_7_hover_with_canted_thrusters_and_no_stabiliser():
     # Acceptance: the scene starts 50 m high, tilted and rotating; poles at -0.9..-1.1 and -1
     # decay as e^-0.9t: 30 s shrinks a 50 m error by e^-27, so after 30 s only the ZOH and
-    # mass-loss residue (mm) remains: 0.5 m and 0.5 deg are the bounds, met with room.
+    # mass-loss residue (mm) remains: 0.5 m and 0.5 deg are the bounds asked of the hover, met with room.
     sc = load_scene("hover-canted")
     assert not sc.stabiliser
     sim = Simulation(sc)

@@ -1,7 +1,7 @@
-"""Every bag holds the whole flight, exactly (issue 12): a matrix over every shipped scene and
+"""Every bag holds the whole flight, exactly (docs/flying.md, "A flight's span"): a matrix over every shipped scene and
 scripted flight in the modes that apply, each bag read back with the independent `mcap` reader
 (spancheck.py): state 1 at t = 0 to the end instant, nothing after, exactly the sim's counts per
-topic, no sequence gap, every lockstep state answered. Then the cases the issue found, each as
+topic, no sequence gap, every lockstep state answered. Then the cases found on the way (bags that held another flight), each as
 the user typed it, and the summary's labels.
 
 Always on: a representative subset (sim alone at speed 0 and 1, lockstep, --compose, a fixed
@@ -38,7 +38,7 @@ SHORT = 2.0
 #: A flight at speed 1 takes its duration in wall time.
 SHORT_SPEED1 = 1.0
 #: Representative cells, always run (the rest of the matrix needs --runslow).
-#: Sim alone at speed 0 and lockstep are always run by the issue's own cases below (tumbling descent,
+#: Sim alone at speed 0 and lockstep are always run by the regression cases below (tumbling descent,
 #: free spin, rotor, scenario 1, hover-canted), shipped flights by test_seed*_flights.py (check_bag).
 ALWAYS = {("hover-canted", "compose"), ("hover", "speed1")}
 
@@ -110,7 +110,7 @@ def _period(plan: FlightPlan) -> float:
     return max(1, round(1.0 / (rate * dt))) * dt
 
 
-# --- the cases the issue found, as the user typed them -----------------------------------------
+# --- the cases found (bags that held another flight), as the user typed them -----------------------------------------
 
 
 def _lander(*args: str, timeout: float = 240.0) -> tuple[int, str]:

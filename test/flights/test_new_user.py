@@ -1,4 +1,4 @@
-"""What a new user meets with `lander fly` (issue 17, items 1, 3, 4 and 5), each as typed:
+"""What a new user meets with `lander fly` (parameter files, name checks, log noise, demands recorded), each as typed:
 
 1. a demand published with default QoS from another process during a flight is in the bag;
 3. a ``--params`` section the launcher does not know is a one-line error (exit 2), and the

@@ -1,4 +1,4 @@
-"""`lander record --whole-flight` of a flight that is already running (issue 12's last path): the
+"""`lander record --whole-flight` of a flight that is already running (docs/flying.md, "A flight's span"): the
 nodes are started the way `ros2 run` / `ros2 launch` start them (running, no launcher), the
 command joins, restarts the flight from t = 0 and records it to the end instant; the bag is then
 read with the independent `mcap` reader (spancheck.py) and must hold the whole flight exactly.

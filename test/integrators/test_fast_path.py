@@ -26,7 +26,7 @@ def _pair(scene: str, throttles, wind, dt: float = 0.01):
 def test_kernel_matches_the_numpy_path_to_1e12_over_1000_steps(scene, throttles, wind) -> None:
     # Same equations in the same operation order: the only admissible differences are the
     # summation order of numpy's small dot products (a few ulp per step, amplified at most
-    # linearly over 1000 steps of a non-chaotic flight) -> 1e-12 relative, as the issue asks.
+    # linearly over 1000 steps of a non-chaotic flight) -> 1e-12 relative, the agreement the compiled paths are held to.
     sim, fl = _pair(scene, throttles, wind)
     ref = sim.y.copy()
     y = sim.y.copy()

@@ -63,7 +63,7 @@ def test_splitting_energy_error_is_bounded_and_not_growing_over_1e5_steps() -> N
 def test_exponential_map_keeps_unit_quaternion_without_renormalising_over_1e6_steps() -> None:
     # Each substep multiplies q by (cos, sin e_i), an exactly unit quaternion up to rounding, so
     # |q| - 1 performs a random walk of ~1e-16 per substep: ~sqrt(5e6) * 1e-16 ~ 2e-13 after
-    # 1e6 steps, inside the 1e-12 the issue asks for. (Verlet without renormalisation drifts
+    # 1e6 steps, inside the 1e-12 asked of it. (Verlet without renormalisation drifts
     # at O(dt^2) per step instead; see test_convergence.)
     q = rotation.axis_angle_to_quat(np.array([0.2, 1.0, -0.4]), 0.9)
     L = INERTIA * np.array([3.0, -5.0, 40.0])  # fast spin, 40 rad/s, as after a burn-out

@@ -1,4 +1,4 @@
-"""A live flight (issue 15), with real parts only: `lander fly` (sim + autopilot in lockstep, real
+"""A live flight (docs/live.md), with real parts only: `lander fly` (sim + autopilot in lockstep, real
 middleware), `lander live` (its own process), a `websockets` client on the ``foxglove.sdk.v1``
 subprotocol, the CLI verbs (run in this process through `lander_tools.cli.main`, each opening its
 own ROS context as the command does) and headless Chromium on the student page.

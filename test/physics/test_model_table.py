@@ -1,4 +1,4 @@
-"""A model is owned by its module (issue 18, item 2): adding a force model is one module and one
+"""A model is owned by its module (docs/physics.md, "Adding a model"): adding a force model is one module and one
 row of the models table (lander_sim/physics/models/table.py), nothing in the loader or the
 simulation. Shown here with a module written in this file (a linear spring to a world-frame anchor)
 and one row put into the table for the test.

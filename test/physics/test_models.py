@@ -41,7 +41,7 @@ def add(model, ctx):
     return fW, fB, qB
 
 
-def test_constants_match_the_issue():
+def test_constants_match_the_original_program():
     assert math.isclose(c.GM_MARS, 6.673e-11 * 6.42e23)
     assert math.isclose(c.LANDER_MAX_THRUST, 373.7, rel_tol=1e-3)  # "about 373.7 N"
 

@@ -23,7 +23,7 @@ def test_every_packaged_scene_loads_and_original_numbers_are_aliases():
     assert load_scene("rotor").name == "rotor-quaternion"
 
 
-def test_scenario_initial_conditions_follow_the_issue():
+def test_scenario_initial_conditions_follow_the_original_scenarios():
     R = 3386e3
     hover = load_scene("7")
     assert np.allclose(hover.initial_state[0:3], [0, -(R + 550), 0])

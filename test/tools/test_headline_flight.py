@@ -1,5 +1,5 @@
 """The README's headline flight as a new user meets it: `lander fly hover --record B` then
-`lander analyse B` (issue 17, items 2 and 7). One 60 s flight of scenario 7 serves both tests; it
+`lander analyse B` (the README's headline flight and its summary). One 60 s flight of scenario 7 serves both tests; it
 flies as fast as possible (lockstep makes the flight the same at any speed)."""
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Every plot the project draws, regenerated in the test run and read as a student would: both
 axes of every axes labelled, no legend over the data, one colour per flight in every panel, a
-trajectory's axes on one scale, and no matplotlib warning while drawing (issue 17, items 5 and 6).
+trajectory's axes on one scale, and no matplotlib warning while drawing (docs/flying.md: what `lander analyse` draws).
 
 The Figure objects are inspected, not pixels: ``lander analyse``'s kinds
 (:func:`lander_tools.analysis.figures`), the rotor's z-axis track, the sweep plots and the

@@ -18,7 +18,7 @@ def test_every_shipped_flight_loads_and_names_a_known_scene() -> None:
 
     flights = shipped_flights()
     names = {f.stem for f in flights}
-    # The list: seed 1 spin and spin-up, seed 2 P-only, hover, steps, wind, swap.
+    # The shipped flights (docs/flying.md): seed 1 spin and spin-up, seed 2 P-only, hover, steps, wind, swap.
     assert {"seed1-scenario8-spin", "seed1-scenario8-spin-up", "seed2-scenario7-p-only", "seed2-scenario7-hover",
             "seed2-scenario7-altitude-steps", "seed2-scenario7-wind", "seed2-scenario7-controller-swap"} <= names
     for f in flights:

@@ -55,7 +55,7 @@ from lander_autopilot.ros.config import (
     DEFAULT_STATE_TIMEOUT,
     NODE_NAME,
     PARAMETER_NAMES,
-    PARAMETERS,
+    SPECS,
     ConfigError,
     check_state_timeout,
     check_string,
@@ -67,6 +67,7 @@ from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
 from lander_ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
+from lander_ros.params import check_overrides
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
@@ -76,30 +77,29 @@ _DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, histo
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
 #: Wall period [s] of the state watchdog (steady clock: it must notice a simulator whose /clock stopped).
 _WATCHDOG_PERIOD = 0.1
-#: Parameters every ROS node has, accepted on the command line and in parameter files.
-_ROS_BUILTIN = {"use_sim_time", "start_type_description_service"}
 
 
 #: Executor threads: control (states, demand, watchdog), the switch service, the parameter services.
 class AutopilotNode(Node):
     """The autopilot node. Build it, then spin it in :func:`make_executor`'s executor."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, argv: list[str] | None = None, **kwargs) -> None:
+        """``argv``: the command line the node's overrides come from (default ``sys.argv``): each is
+        checked before the node exists (an unknown name or a bad value is a ConfigError naming it),
+        and ``use_sim_time`` defaults to true unless it is given there."""
+        given = check_overrides(SPECS, sys.argv if argv is None else argv, NODE_NAME, ConfigError)
         super().__init__(NODE_NAME, **kwargs)
         # Sim time by default (the simulator is the clock); an explicit override still wins.
-        if "use_sim_time" not in self._parameter_overrides:
+        if "use_sim_time" not in given:
             self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
-        unknown = sorted(set(self._parameter_overrides) - set(PARAMETER_NAMES) - _ROS_BUILTIN)
-        if unknown:
-            raise ConfigError(f"unknown parameter {unknown[0]!r} for node {NODE_NAME!r}; known: {', '.join(PARAMETER_NAMES)}")
 
         # Defaults follow the scene: declare it first, then the rest with its autopilot section.
         scene = check_string("scene", self._declare("scene", "hover"))
         wanted = scene_autopilot(load_scene(scene))
         controller = check_string("controller", self._declare("controller", wanted.controller))
         params_text = self._declare("controller_params", dump_controller_params(wanted.parameters))
-        demand = self._declare("demand_altitude", wanted.demand_altitude, dynamic=True)
-        self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT, dynamic=True))
+        demand = self._declare("demand_altitude", wanted.demand_altitude)
+        self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT))
         # Before any subscription or timer exists: importing python-control holds the GIL for
         # seconds in stretches, and in a background thread it starved the control steps, so the
         # first states of a lockstep flight waited out the simulator's timeout (measured: 10 states
@@ -177,11 +177,12 @@ class AutopilotNode(Node):
             return
         self.get_logger().debug(f"python-control imported and design path warmed in {time.monotonic() - t0:.2f} s")
 
-    def _declare(self, name: str, default, dynamic: bool = False):
-        """Declare a parameter with its description; return its value (an override wins over the default)."""
-        spec = next(p for p in PARAMETERS if p.name == name)
-        descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=dynamic)
-        return self.declare_parameter(name, default, descriptor).value
+    def _declare(self, name: str, default):
+        """Declare a parameter from its spec with ``default`` (the scene's, where the spec has
+        none); return its value (an override wins over the default)."""
+        spec = SPECS[name]
+        descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=spec.dynamic_typing)
+        return self.declare_parameter(name, default if spec.default is None else spec.default, descriptor).value
 
     # --- control step ------------------------------------------------------------------------
 
@@ -455,7 +456,8 @@ def _in_thread(work: Callable[[], Any], wake: Callable[[], None]) -> Future:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point ``autopilot_node``: build the node and run it until Ctrl-C or SIGTERM."""
-    return run_node_process("autopilot_node", sys.argv if argv is None else argv, AutopilotNode, make_executor)
+    argv = sys.argv if argv is None else argv
+    return run_node_process("autopilot_node", argv, lambda: AutopilotNode(argv), make_executor)
 
 
 if __name__ == "__main__":

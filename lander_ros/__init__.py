@@ -1,2 +1,3 @@
-"""What both nodes' ROS shells and the tools share (the simulator's and the autopilot's packages
-import it; it imports neither): sim-time stamps, and the flight's span protocol."""
+"""What both nodes' ROS shells and the tools share (the simulator's and the autopilot's shells
+import it; it imports neither, only the plain-Python core): sim-time stamps, parameters, output
+delivery, and the flight's span protocol."""

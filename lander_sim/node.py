@@ -53,15 +53,16 @@ from lander_ros.flight_span import (
     format_matched,
     parse_end_on,
 )
+from lander_ros.params import check_overrides
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import (
     NODE_NAME,
     PARAMETERS,
     SCENE_SEED,
+    SPECS,
     ConfigError,
     check_parameter,
-    check_params_file,
 )
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
 from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOutcome
@@ -675,18 +676,12 @@ class SimNode(Node):
         self._publish(pending)
 
 
-def _check_params_files(argv: list[str]) -> None:
-    """Validate every ``--params-file`` on the command line (rcl would silently ignore unknown keys)."""
-    for i, arg in enumerate(argv[:-1]):
-        if arg == "--params-file":
-            check_params_file(argv[i + 1])
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point ``sim_node``: build the node and run it until Ctrl-C or shutdown."""
     argv = sys.argv if argv is None else argv
     try:
-        _check_params_files(argv)
+        # rcl would ignore an unknown name without a word: every override is checked first
+        check_overrides(SPECS, argv, NODE_NAME, ConfigError)
     except ConfigError as exc:
         print(f"sim_node: {exc}", file=sys.stderr)
         return 2

@@ -327,10 +327,6 @@ def did_you_mean(name: str, choices: list[str]) -> str:
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
-#: Parameters every ROS node has: accepted in any section of a ``--params`` file.
-_ROS_BUILTIN_PARAMS = frozenset({"use_sim_time", "start_type_description_service"})
-
-
 def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
     """The ``--params`` file's parameters per node (``lander_sim``, ``autopilot``).
 
@@ -338,12 +334,13 @@ def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
     for it); each holds only ``ros__parameters``. An unknown section or key is a
     :class:`LaunchError` naming it and what is allowed (rcl would ignore it without a word).
     """
-    from lander_autopilot.ros.config import PARAMETER_NAMES as AP_NAMES
+    from lander_autopilot.ros.config import SPECS as AP_SPECS
+    from lander_ros.params import ROS_BUILTIN, check_value
     from lander_sim.ros.config import SPECS as SIM_SPECS
-    from lander_sim.ros.config import check_parameter
     from lander_sim.yaml_file import read_yaml
 
-    known = {SIM_NODE: set(SIM_SPECS), AUTOPILOT_NODE: set(AP_NAMES)}
+    specs = {SIM_NODE: SIM_SPECS, AUTOPILOT_NODE: AP_SPECS}
+    known = {node: set(s) for node, s in specs.items()}
     data = read_yaml(Path(path), "parameters file", LaunchError)
     allowed = ", ".join(PARAMS_SECTIONS)
     if not isinstance(data, dict):
@@ -359,12 +356,12 @@ def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
             raise LaunchError(f"--params {path}: section {key!r} must hold only a 'ros__parameters' mapping")
         for name, value in section["ros__parameters"].items():
             for node in nodes:
-                if name not in known[node] | _ROS_BUILTIN_PARAMS:
+                if name not in known[node] | ROS_BUILTIN:
                     names = sorted(known[node])
                     raise LaunchError(f"--params {path}: section {key!r}: {node} has no parameter {name!r}"
                                       f"{did_you_mean(str(name), names)} (allowed: {', '.join(names)})")
-                if node == SIM_NODE and name not in _ROS_BUILTIN_PARAMS:
-                    reason = check_parameter(name, value)
+                if name not in ROS_BUILTIN:
+                    reason = check_value(specs[node], name, value)
                     if reason is not None:
                         raise LaunchError(f"--params {path}: section {key!r}: {reason}")
                 out[node][name] = value
@@ -458,14 +455,17 @@ def composed_main(argv: list[str]) -> int:
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
     from lander_autopilot.node import AutopilotNode
+    from lander_ros.params import check_overrides
     from lander_sim.node import SimNode
+    from lander_sim.ros.config import SPECS, ConfigError
 
     rclpy.init(args=argv)
     nodes: list[Any] = []
     try:
+        check_overrides(SPECS, argv, SIM_NODE, ConfigError)
         sim = SimNode()
         nodes.append(sim)
-        ap = AutopilotNode()
+        ap = AutopilotNode(argv)
         nodes.append(ap)
         executor = SingleThreadedExecutor()
         executor.add_node(sim)

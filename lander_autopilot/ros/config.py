@@ -18,6 +18,7 @@ from typing import Any
 
 import yaml
 
+from lander_ros.params import ParamSpec, is_number, positive, string
 from lander_sim.scenes import Scene
 
 #: The node's name: also the top-level key of its ROS parameters YAML file.
@@ -31,28 +32,46 @@ class ConfigError(ValueError):
     """A parameter value or a scene's autopilot section was refused; the message names key and value."""
 
 
-@dataclass(frozen=True)
-class ParamSpec:
-    """One node parameter; its default is filled in at start-up from the scene where it says so."""
+def _controller_params(v: Any) -> str | None:
+    try:
+        parse_controller_params(v)
+    except ConfigError as exc:
+        return str(exc).removeprefix("parameter 'controller_params' ")
+    return None
 
-    name: str
-    description: str
+
+def _demand_altitude(v: Any) -> str | None:
+    """The controllers' own check of a demand altitude (:class:`lander_autopilot.controllers.Demand`)."""
+    from lander_autopilot.controllers.base import Demand, DemandError
+
+    if not is_number(v):
+        return "must be a number [m]"
+    try:
+        Demand(altitude=float(v))
+    except DemandError as exc:
+        return f"refused: {exc}"
+    return None
 
 
+#: Defaults None are the scene's (filled in at start-up, scene_autopilot); the node declares each
+#: from its spec, and an override given at start-up is checked like a later change.
 PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("scene", "Scene (name, alias or YAML path, lander_sim.scenes.load_scene) whose vehicle the "
-                       "controllers are built for: the one the simulator runs. Changing it rebuilds the controller."),
-    ParamSpec("controller", "Controller plug-in name (entry-point group mars_lander.controllers). "
-                            f"Default: the scene's autopilot controller, else {DEFAULT_CONTROLLER!r}."),
-    ParamSpec("controller_params", "The controller's parameters as a YAML mapping, e.g. "
-                                   "'{altitude_poles: [-0.9, -1.1]}'; empty = the controller's defaults. "
-                                   "Default: the scene's autopilot parameters."),
-    ParamSpec("demand_altitude", "Demand altitude above the surface [m], finite and >= 0. "
-                                 f"Default: the scene's autopilot demand_altitude, else {DEFAULT_DEMAND_ALTITUDE} m. "
-                                 "/lander/demand_altitude sets it too."),
-    ParamSpec("state_timeout", "Wall-clock seconds without a state on /lander/state after which the "
-                               "status reports the state lost (no command is sent without a state)."),
+    ParamSpec("scene", None, "Scene (name, alias or YAML path, lander_sim.scenes.load_scene) whose vehicle the "
+                             "controllers are built for: the one the simulator runs. Changing it rebuilds the "
+                             "controller. Default: hover.", string),
+    ParamSpec("controller", None, "Controller plug-in name (entry-point group mars_lander.controllers). "
+                                  f"Default: the scene's autopilot controller, else {DEFAULT_CONTROLLER!r}.", string),
+    ParamSpec("controller_params", None, "The controller's parameters as a YAML mapping, e.g. "
+                                         "'{altitude_poles: [-0.9, -1.1]}'; empty = the controller's defaults. "
+                                         "Default: the scene's autopilot parameters.", _controller_params),
+    ParamSpec("demand_altitude", None, "Demand altitude above the surface [m], finite and >= 0. "
+                                       f"Default: the scene's autopilot demand_altitude, else {DEFAULT_DEMAND_ALTITUDE} m. "
+                                       "/lander/demand_altitude sets it too.", _demand_altitude, dynamic_typing=True),
+    ParamSpec("state_timeout", None, "Wall-clock seconds without a state on /lander/state after which the "
+                                     "status reports the state lost (no command is sent without a state). "
+                                     "Default: 1 s.", positive, dynamic_typing=True),
 )
+SPECS: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
 PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)
 #: Parameters whose change rebuilds the controller (atomically swapped in).
 CONTROLLER_PARAMETERS = frozenset({"scene", "controller", "controller_params"})

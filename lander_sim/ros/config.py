@@ -7,13 +7,22 @@ reason that names the key, the value and what is allowed.
 """
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lander_sim.yaml_file import read_yaml
+from lander_ros.params import (
+    ROS_BUILTIN,
+    ParamSpec,
+    boolean,
+    check_value,
+    finite,
+    is_number,
+    non_negative,
+    params_file_overrides,
+    positive,
+    positive_int,
+    string,
+)
 
 #: The node's name, which is also the top-level key of a ROS parameters YAML file.
 NODE_NAME = "lander_sim"
@@ -26,45 +35,10 @@ class ConfigError(ValueError):
     """A parameter or parameters-file entry was refused; the message names the key and value."""
 
 
-@dataclass(frozen=True)
-class ParamSpec:
-    """One node parameter: default value (which fixes its type), description, validity check.
-
-    ``check`` returns ``None`` for a good value or a reason saying what is allowed.
-    ``read_only`` parameters only take effect at start-up (they build the Simulation).
-    """
-
-    name: str
-    default: Any
-    description: str
-    check: Callable[[Any], str | None]
-    read_only: bool = False
-
-
-def _positive(v: Any) -> str | None:
-    return None if _is_number(v) and math.isfinite(v) and v > 0 else "must be a finite number > 0"
-
-
-def _non_negative(v: Any) -> str | None:
-    return None if _is_number(v) and math.isfinite(v) and v >= 0 else "must be a finite number >= 0"
-
-
-def _finite(v: Any) -> str | None:
-    return None if _is_number(v) and math.isfinite(v) else "must be a finite number"
-
-
-def _any_string(v: Any) -> str | None:
-    return None if isinstance(v, str) else "must be a string"
-
-
 def _frame_id(v: Any) -> str | None:
     if not isinstance(v, str) or not v or v.startswith("/") or any(c.isspace() for c in v):
         return "must be a non-empty frame name without a leading '/' or spaces"
     return None
-
-
-def _bool(v: Any) -> str | None:
-    return None if isinstance(v, bool) else "must be true or false"
 
 
 #: ``seed`` parameter value meaning "the scene's own seed" (its ``wind.gust.seed``).
@@ -82,11 +56,7 @@ def _stabiliser(v: Any) -> str | None:
 
 def _gimbal(v: Any) -> str | None:
     # |sin theta| threshold: 0 means "use the scene's value"; above 1 would flag every attitude.
-    return None if _is_number(v) and 0.0 <= v < 1.0 else "must be in [0, 1) (0: use the scene's threshold)"
-
-
-def _positive_int(v: Any) -> str | None:
-    return None if isinstance(v, int) and not isinstance(v, bool) and v > 0 else "must be an integer > 0"
+    return None if is_number(v) and 0.0 <= v < 1.0 else "must be in [0, 1) (0: use the scene's threshold)"
 
 
 def _end_on(v: Any) -> str | None:
@@ -101,35 +71,31 @@ def _end_on(v: Any) -> str | None:
     return None
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
 PARAMETERS: tuple[ParamSpec, ...] = (
-    ParamSpec("scene", "hover", "Scene name, alias or YAML path (lander_sim.scenes.load_scene).", _any_string, True),
-    ParamSpec("integrator", "", "Integrator name (lander_sim.integrators.make); empty: the scene's.", _any_string, True),
-    ParamSpec("dt", 0.0, "Physics step [s] of sim time; 0: the scene's.", _non_negative, True),
+    ParamSpec("scene", "hover", "Scene name, alias or YAML path (lander_sim.scenes.load_scene).", string, True),
+    ParamSpec("integrator", "", "Integrator name (lander_sim.integrators.make); empty: the scene's.", string, True),
+    ParamSpec("dt", 0.0, "Physics step [s] of sim time; 0: the scene's.", non_negative, True),
     ParamSpec(
-        "publish_rate", 50.0, "Output rate [Hz] of sim time: /clock, state, odometry; also the control period.", _positive
+        "publish_rate", 50.0, "Output rate [Hz] of sim time: /clock, state, odometry; also the control period.", positive
     ),
     ParamSpec(
-        "speed", 1.0, "Real-time factor: 1 paced to the wall clock, N times faster, 0 as fast as possible.", _non_negative
+        "speed", 1.0, "Real-time factor: 1 paced to the wall clock, N times faster, 0 as fast as possible.", non_negative
     ),
-    ParamSpec("lockstep", False, "Advance only when the controller has answered the latest state.", _bool),
-    ParamSpec("lockstep_timeout", 1.0, "Wall seconds to wait for a lockstep answer before advancing anyway.", _positive),
+    ParamSpec("lockstep", False, "Advance only when the controller has answered the latest state.", boolean),
+    ParamSpec("lockstep_timeout", 1.0, "Wall seconds to wait for a lockstep answer before advancing anyway.", positive),
     ParamSpec(
-        "command_timeout", 0.5, "Staleness limit [s, sim time] of a held throttle command; 0 disables.", _non_negative
+        "command_timeout", 0.5, "Staleness limit [s, sim time] of a held throttle command; 0 disables.", non_negative
     ),
     ParamSpec("gimbal_threshold", 0.0, "|sin theta| below which gimbal lock is flagged; 0: the scene's.", _gimbal, True),
     ParamSpec("seed", SCENE_SEED, "Seed of the scene's stochastic models (wind gusts); -1 keeps the scene's wind.gust.seed.", _seed),
     ParamSpec("stabiliser", "scene", "Attitude stabiliser: scene (the scene's setting), on or off.", _stabiliser),
     ParamSpec(
         "pause_at", -1.0, "Pause at the first control instant at or after this sim time [s] (once); < 0: never.",
-        _finite,
+        finite,
     ),
     ParamSpec(
         "end_time", -1.0, "End the flight at the first control instant at or after this sim time [s]: publish "
-        "its state and FLIGHT_ENDED, then advance no further until a reset; < 0: no time limit.", _finite,
+        "its state and FLIGHT_ENDED, then advance no further until a reset; < 0: no time limit.", finite,
     ),
     ParamSpec(
         "end_on", "", "Touchdown phases that end the flight the same way, comma-separated: landed, crashed; "
@@ -137,31 +103,23 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "idle_diagnostics", True, "Publish /diagnostics while started paused, before the first reset, resume or "
-        "step; false: a flight's diagnostics start with it (lander fly: the bag holds only the flight's).", _bool,
+        "step; false: a flight's diagnostics start with it (lander fly: the bag holds only the flight's).", boolean,
     ),
-    ParamSpec("start_paused", False, "Start paused (resume, step or run_until to advance).", _bool, True),
+    ParamSpec("start_paused", False, "Start paused (resume, step or run_until to advance).", boolean, True),
     ParamSpec("world_frame", "mars", "Planet-fixed frame id (the core's world frame).", _frame_id),
     ParamSpec("body_frame", "base_link", "Body frame id (principal axes of the lander).", _frame_id),
-    ParamSpec("publish_tf", True, "Broadcast world->body TF when tf2_ros is importable.", _bool),
-    ParamSpec("marker_rate", 10.0, "Maximum marker publishing rate [Hz, wall clock].", _positive),
-    ParamSpec("diagnostics_rate", 1.0, "Diagnostics publishing rate [Hz, wall clock].", _positive),
-    ParamSpec("trajectory_length", 500, "Points kept in the trajectory marker.", _positive_int),
+    ParamSpec("publish_tf", True, "Broadcast world->body TF when tf2_ros is importable.", boolean),
+    ParamSpec("marker_rate", 10.0, "Maximum marker publishing rate [Hz, wall clock].", positive),
+    ParamSpec("diagnostics_rate", 1.0, "Diagnostics publishing rate [Hz, wall clock].", positive),
+    ParamSpec("trajectory_length", 500, "Points kept in the trajectory marker.", positive_int),
 )
 
 SPECS: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
-#: Parameters every ROS node has; accepted in a parameters file, not validated here.
-_ROS_BUILTIN = {"use_sim_time", "start_type_description_service"}
 
 
 def check_parameter(name: str, value: Any) -> str | None:
     """Reason ``value`` is refused for parameter ``name``, or ``None`` when it is good."""
-    spec = SPECS.get(name)
-    if spec is None:
-        return f"unknown parameter {name!r}; known: {', '.join(sorted(SPECS))}"
-    if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    reason = spec.check(value)
-    return None if reason is None else f"parameter {name!r} = {value!r} {reason}"
+    return check_value(SPECS, name, value)
 
 
 def check_params_file(path: str | Path) -> dict[str, Any]:
@@ -170,22 +128,11 @@ def check_params_file(path: str | Path) -> dict[str, Any]:
     Raises :class:`ConfigError` naming the file and the unknown key or bad value,
     so a typo fails loudly instead of being ignored by rcl.
     """
-    p = Path(path)
-    data = read_yaml(p, "parameters file", ConfigError)
-    if not isinstance(data, dict):
-        raise ConfigError(f"{p}: expected a mapping with key {NODE_NAME!r} (or '/**')")
-    params: dict[str, Any] = {}
-    for node_key in (NODE_NAME, f"/{NODE_NAME}", "/**"):
-        section = data.get(node_key)
-        if section is None:
-            continue
-        if not isinstance(section, dict) or not isinstance(section.get("ros__parameters"), dict):
-            raise ConfigError(f"{p}: key {node_key!r} must hold a 'ros__parameters' mapping")
-        params.update(section["ros__parameters"])
+    params = params_file_overrides(path, NODE_NAME, ConfigError)
     for name, value in params.items():
-        if name in _ROS_BUILTIN:
-            continue
-        reason = check_parameter(name, value)
+        reason = None if name in ROS_BUILTIN else check_parameter(name, value)
         if reason is not None:
-            raise ConfigError(f"{p}: {reason}")
+            raise ConfigError(f"{path}: {reason}")
     return params
+
+

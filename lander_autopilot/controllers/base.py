@@ -164,8 +164,10 @@ def wrap_angle(a: float) -> float:
 class Controller(ABC):
     """Base of all controllers (built-in and third-party).
 
-    Subclasses set :attr:`name`, do their design in ``__init__`` and implement
-    :meth:`update`; :meth:`reset` clears internal state (integrators, memories).
+    Subclasses set :attr:`name`, do their design in ``__init__`` and implement :meth:`command`,
+    the law's throttles before clipping; :meth:`update`, what the shell calls, clips them to
+    [0, 1] and flags saturation (a law that also reports a mode or requests overrides it).
+    :meth:`reset` clears internal state (integrators, memories).
     """
 
     name: ClassVar[str] = "controller"

@@ -3,9 +3,12 @@ law's differential throttles, clipped once to [0, 1]; and the LQR variant.
 """
 from __future__ import annotations
 
-from typing import ClassVar
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar, TypedDict, Unpack
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
@@ -30,13 +33,39 @@ def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> n
     return min(max(collective, -lo), 1.0 - hi) + d
 
 
+@dataclass(frozen=True)
+class Mix:
+    """A summed law's throttles before clipping, and whether its mixer gave way.
+
+    Attributes
+    ----------
+    throttles : ndarray (N,)
+        What the law asks of the thrusters; :meth:`output` clips them once.
+    mixed_from : ndarray (N,) or None
+        ``None`` if ``throttles`` are what the parts asked for. Otherwise the mixer changed them to
+        fit [0, 1] (the collective gave way, or an allocation saturated): that counts as
+        saturation, and ``mixed_from`` (what was asked) is reported as ``ControlOutput.unclipped``.
+    """
+
+    throttles: np.ndarray
+    mixed_from: np.ndarray | None = None
+
+    def output(self) -> ControlOutput:
+        """The step's result: ``throttles`` clipped to [0, 1], saturated if clipped or mixed."""
+        out = saturate(self.throttles)
+        if self.mixed_from is None:
+            return out
+        return ControlOutput(throttles=out.throttles, saturated=True, unclipped=self.mixed_from)
+
+
 class SumController(Controller):
-    """``u = u_altitude + u_attitude`` (unclipped), then clipped by :meth:`Controller.update`.
+    """``u = u_altitude + u_attitude`` (unclipped), then clipped once by :meth:`update`.
 
     With ``attitude_priority`` (default) a sum that would saturate first gives up collective
     (altitude) throttle, keeping the attitude law's differential throttles: clipping the plain
     sum can leave every thruster at 1 (or 0) with no torque left, and a tilted lander that
     cannot turn back upright falls (seen flying from 170 degrees off upright).
+    :meth:`mixed_command` is the law; a subclass that changes it overrides that method.
     """
 
     def __init__(
@@ -46,38 +75,37 @@ class SumController(Controller):
         self.altitude = altitude
         self.attitude = attitude
         self.attitude_priority = attitude_priority
-        self._mixed_from: np.ndarray | None = None
 
     def reset(self) -> None:
         self.altitude.reset()
         self.attitude.reset()
 
-    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+    def mixed_command(self, t: float, state: StateView, demand: Demand) -> Mix:
+        """The summed throttles before clipping, with the mixer's flag (:class:`Mix`)."""
         u_alt = self.altitude.command(t, state, demand)
         u_att = self.attitude.command(t, state, demand)
         u = u_alt + u_att
         if not self.attitude_priority or (u.min() >= 0.0 and u.max() <= 1.0):
-            return u
+            return Mix(u)
         # Collective c (mean altitude throttle) plus differential d.
         c = float(u_alt.mean())
-        self._mixed_from = u
-        return mix_with_attitude_priority(c, u - c)
+        return Mix(mix_with_attitude_priority(c, u - c), mixed_from=u)
+
+    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+        """:meth:`mixed_command`'s throttles (the array :meth:`Controller.command` promises)."""
+        return self.mixed_command(t, state, demand).throttles
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         """As :meth:`Controller.update`; giving up collective throttle counts as saturation and
-        ``unclipped`` is then the plain sum the laws asked for."""
-        self._mixed_from = None
-        out = saturate(self.command(t, state, demand))
-        if self._mixed_from is None:
-            return out
-        return ControlOutput(throttles=out.throttles, saturated=True, unclipped=self._mixed_from)
+        ``unclipped`` is then the plain sum the laws asked for (:meth:`Mix.output`)."""
+        return self.mixed_command(t, state, demand).output()
 
     def compiled_form(self) -> object | None:
         """The summed law as a :class:`~.compiled.CompiledLaw`: both parts must have one, and
         neither this class nor a subclass may change how they are summed."""
         from .compiled import AltitudeLaw, AttitudeLaw, CompiledLaw, compiled_form, keeps_law
 
-        if not keeps_law(self, SumController, "command", "update", "reset"):
+        if not keeps_law(self, SumController, "mixed_command", "command", "update", "reset"):
             return None
         alt, att = compiled_form(self.altitude), compiled_form(self.attitude)
         if (alt is None or att is None or alt.attitude is not AttitudeLaw.NONE or att.altitude is not AltitudeLaw.NONE
@@ -86,76 +114,82 @@ class SumController(Controller):
         return CompiledLaw.combine(alt, att, self.attitude_priority)
 
 
+class SumParams(TypedDict, total=False):
+    """Keyword parameters of the summed laws ``combined-quaternion`` and, with
+    :class:`EulerSumParams`, ``combined`` and ``integral`` (their YAML names).
+
+    Each goes to one part, or both (``design_fuel``); one left out takes that part's default.
+
+    * ``altitude_poles``: the altitude law's ``poles`` (default ``(-0.9, -1.1)``; with integral
+      action ``(-0.8, -1.0, -1.2)``);
+    * ``attitude_poles``: the attitude law's ``poles`` (default all six at -1);
+    * ``K_altitude``, ``K_attitude``: given gains, used verbatim instead of a design;
+    * ``design_fuel``: fuel [kg] both parts are designed at (default a full tank).
+    """
+
+    altitude_poles: ArrayLike
+    attitude_poles: ArrayLike
+    K_altitude: ArrayLike | None
+    K_attitude: ArrayLike | None
+    design_fuel: float | None
+
+
+class EulerSumParams(SumParams, total=False):
+    """:class:`SumParams` plus ``design_attitude``: the ZXZ Euler angles [rad] the Euler attitude
+    law is linearised at (default upright, :data:`~.base.UPRIGHT_EULER`)."""
+
+    design_attitude: ArrayLike
+
+
+#: Summed-law parameter -> the altitude part's parameter, and the attitude part's.
+_ALTITUDE_PART = {"altitude_poles": "poles", "K_altitude": "K", "design_fuel": "design_fuel"}
+_ATTITUDE_PART = {"attitude_poles": "poles", "K_attitude": "K", "design_fuel": "design_fuel",
+                  "design_attitude": "design_attitude"}
+
+
+def _parts(params: Mapping[str, object], accepted: type) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The altitude part's and the attitude part's keyword arguments from a summed law's ``params``
+    (renamed; one left out is left to the part's default). A name the TypedDict ``accepted`` does
+    not list is a TypeError, as an unexpected keyword is for any call."""
+    unknown = sorted(set(params) - set(accepted.__annotations__))
+    if unknown:
+        raise TypeError(f"unexpected keyword argument(s) {', '.join(unknown)}; accepted: {', '.join(sorted(accepted.__annotations__))}")
+    alt = {_ALTITUDE_PART[k]: v for k, v in params.items() if k in _ALTITUDE_PART}
+    att = {_ATTITUDE_PART[k]: v for k, v in params.items() if k in _ATTITUDE_PART}
+    return alt, att
+
+
 class CombinedController(SumController):
-    """Altitude state feedback (poles ``(-0.9, -1.1)``) + Euler attitude feedback (poles all -1)."""
+    """Altitude state feedback (poles ``(-0.9, -1.1)``) + Euler attitude feedback (poles all -1).
+    Parameters: :class:`EulerSumParams`."""
 
     name: ClassVar[str] = "combined"
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        altitude_poles: object = (-0.9, -1.1),
-        attitude_poles: object = (-1.0,) * 6,
-        K_altitude: object | None = None,
-        K_attitude: object | None = None,
-        design_fuel: float | None = None,
-        design_attitude: object = UPRIGHT_EULER,
-    ) -> None:
-        super().__init__(
-            vehicle,
-            AltitudeController(vehicle, poles=altitude_poles, K=K_altitude, design_fuel=design_fuel),
-            EulerAttitudeController(
-                vehicle, poles=attitude_poles, K=K_attitude, design_fuel=design_fuel, design_attitude=design_attitude
-            ),
-        )
+    def __init__(self, vehicle: Vehicle, **params: Unpack[EulerSumParams]) -> None:
+        alt, att = _parts(params, EulerSumParams)
+        super().__init__(vehicle, AltitudeController(vehicle, **alt), EulerAttitudeController(vehicle, **att))
 
 
 class CombinedQuaternionController(SumController):
-    """Altitude state feedback + the quaternion attitude law (no gimbal lock)."""
+    """Altitude state feedback + the quaternion attitude law (no gimbal lock). Parameters:
+    :class:`SumParams`."""
 
     name: ClassVar[str] = "combined-quaternion"
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        altitude_poles: object = (-0.9, -1.1),
-        attitude_poles: object = (-1.0,) * 6,
-        K_altitude: object | None = None,
-        K_attitude: object | None = None,
-        design_fuel: float | None = None,
-    ) -> None:
-        super().__init__(
-            vehicle,
-            AltitudeController(vehicle, poles=altitude_poles, K=K_altitude, design_fuel=design_fuel),
-            QuaternionAttitudeController(vehicle, poles=attitude_poles, K=K_attitude, design_fuel=design_fuel),
-        )
+    def __init__(self, vehicle: Vehicle, **params: Unpack[SumParams]) -> None:
+        alt, att = _parts(params, SumParams)
+        super().__init__(vehicle, AltitudeController(vehicle, **alt), QuaternionAttitudeController(vehicle, **att))
 
 
 class IntegralController(SumController):
-    """Altitude with integral action (rejects a constant disturbance) + Euler attitude feedback."""
+    """Altitude with integral action (rejects a constant disturbance) + Euler attitude feedback.
+    Parameters: :class:`EulerSumParams` (``altitude_poles``: three, default ``(-0.8, -1.0, -1.2)``)."""
 
     name: ClassVar[str] = "integral"
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        altitude_poles: object = (-0.8, -1.0, -1.2),
-        attitude_poles: object = (-1.0,) * 6,
-        K_altitude: object | None = None,
-        K_attitude: object | None = None,
-        design_fuel: float | None = None,
-        design_attitude: object = UPRIGHT_EULER,
-    ) -> None:
-        super().__init__(
-            vehicle,
-            IntegralAltitudeController(vehicle, poles=altitude_poles, K=K_altitude, design_fuel=design_fuel),
-            EulerAttitudeController(
-                vehicle, poles=attitude_poles, K=K_attitude, design_fuel=design_fuel, design_attitude=design_attitude
-            ),
-        )
+    def __init__(self, vehicle: Vehicle, **params: Unpack[EulerSumParams]) -> None:
+        alt, att = _parts(params, EulerSumParams)
+        super().__init__(vehicle, IntegralAltitudeController(vehicle, **alt), EulerAttitudeController(vehicle, **att))
 
 
 #: Default LQR weights. Bryson's rule: 1 / (acceptable excursion)^2 with 1 m and 1 m/s for
@@ -179,12 +213,12 @@ class LQRController(SumController):
         self,
         vehicle: Vehicle,
         *,
-        Q_altitude: object = LQR_Q_ALTITUDE,
+        Q_altitude: ArrayLike = LQR_Q_ALTITUDE,
         R_altitude: float = LQR_R_ALTITUDE,
-        Q_attitude: object = LQR_Q_ATTITUDE,
+        Q_attitude: ArrayLike = LQR_Q_ATTITUDE,
         R_attitude: float = LQR_R_ATTITUDE,
         design_fuel: float | None = None,
-        design_attitude: object = UPRIGHT_EULER,
+        design_attitude: ArrayLike = UPRIGHT_EULER,
     ) -> None:
         from ..design.altitude import altitude_model
         from ..design.attitude import attitude_model

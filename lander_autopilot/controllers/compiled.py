@@ -275,7 +275,7 @@ def law_update(params, K, law_state, t, y, demand, u, e):  # pragma: no cover - 
         lo = min(lo, u[i])
         hi = max(hi, u[i])
     if params[L_SUMMED] != 0.0 and params[L_PRIORITY] != 0.0 and not (lo >= 0.0 and hi <= 1.0):
-        # SumController.command: keep the differential part, move the collective into range.
+        # SumController.mixed_command: keep the differential part, move the collective into range.
         c = u_alt  # mean of the collective throttles, summed in numpy's order (they are equal)
         for _ in range(1, n):
             c += u_alt

@@ -38,7 +38,7 @@ from ._params import matrix_param, poles_param, positive_param
 from .altitude import AltitudeController
 from .attitude import QuaternionAttitudeController
 from .base import Controller, ControllerError, Demand
-from .combined import SumController
+from .combined import Mix, SumController
 
 
 class _Collective(Controller):
@@ -129,7 +129,7 @@ class GroundSpeedController(SumController):
 
     # --- the law ---------------------------------------------------------------------------
 
-    def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+    def mixed_command(self, t: float, state: StateView, demand: Demand) -> Mix:
         r_W = state.r_W
         L = local_frame(r_W)
         r = float(np.linalg.norm(r_W))
@@ -177,9 +177,9 @@ class GroundSpeedController(SumController):
         """World vector the demand body x is kept nearest to: east (a subclass may give the heading up)."""
         return L[0]
 
-    def mix(self, t: float, state: StateView, inner: Demand) -> np.ndarray:
+    def mix(self, t: float, state: StateView, inner: Demand) -> Mix:
         """Throttles from the collective and the attitude law (the summed law's mix, attitude priority)."""
-        return SumController.command(self, t, state, inner)
+        return SumController.mixed_command(self, t, state, inner)
 
     @property
     def collective(self) -> _Collective:

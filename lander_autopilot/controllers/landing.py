@@ -72,6 +72,7 @@ from .base import (
     Demand,
     Request,
 )
+from .combined import Mix
 from .failure import ChuteTorqueModel, SpinAllocation, ThreeThrusterAllocation, ThrusterFailureDetector
 from .ground_speed import GroundSpeedController
 
@@ -328,7 +329,7 @@ class LandingController(GroundSpeedController):
     LONE_HEIGHT = 20.0
     LONE_TOUCHDOWN = 0.5
 
-    def _spin_mix(self, state: StateView) -> np.ndarray:
+    def _spin_mix(self, state: StateView) -> Mix:
         """Throttles of the spinning descent: lift from the profile, yaw torque holding the spin,
         and the roll/pitch torque along the pair's axis that precesses the spin axis (body frame)."""
         spin = self.spin
@@ -358,11 +359,9 @@ class LandingController(GroundSpeedController):
         lone_max = self.LONE_TOUCHDOWN + s_h * (1.0 - self.LONE_TOUCHDOWN)
         u, saturated = spin.allocate(tau_p, self.lift_force, yaw, yaw_first=abs(float(w[2])) > self.SPIN_MAX,
                                      lone_max=lone_max)
-        if saturated:
-            self._mixed_from = u.copy()
-        return u
+        return Mix(u, mixed_from=u.copy() if saturated else None)
 
-    def mix(self, t: float, state: StateView, inner: Demand) -> np.ndarray:
+    def mix(self, t: float, state: StateView, inner: Demand) -> Mix:
         if self.allocation is None:
             return super().mix(t, state, inner)
         lift = self.lift_force
@@ -376,9 +375,7 @@ class LandingController(GroundSpeedController):
         # Yaw is let be: only the roll and pitch torque are allocated (the lander spins up about its
         # axis, about 1 rad/s^2 with the pair near full throttle).
         u, saturated = self.allocation.allocate(torque[:2], lift)
-        if saturated:
-            self._mixed_from = u.copy()
-        return u
+        return Mix(u, mixed_from=u.copy() if saturated else None)
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         self._mass = self.vehicle.mass(state.fuel)

@@ -1,36 +1,49 @@
 """From orbit to the ground: the mission's phases as one small explicit state machine.
 
-Seed 2's last extension (control reference, section 6): de-orbit the lander, then stabilise the fall
-into a hover at a fixed altitude, without the built-in attitude stabiliser. The attitude is always
-flown by this law (a quaternion attitude law, :class:`.attitude.QuaternionAttitudeController`'s
-gains), never by the stabiliser.
+Seed 2's last extension ("Extended Mars lander, part 2: control", section 6): de-orbit the lander,
+then stabilise the fall into a hover at a fixed altitude, without the built-in attitude stabiliser.
+The attitude is always flown by this law (a quaternion attitude law,
+:class:`.attitude.QuaternionAttitudeController`'s gains), never by the stabiliser. World frame
+``mars`` (planet-centred), SI units throughout.
 
 Phases (:class:`Phase`, forward only; each change is the controller's ``mode``, which the autopilot
 node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
 
     deorbit-slew  turn the thrust axis (body +z) retrograde; the burn is planned at the first step
-                  (:func:`lander_autopilot.guidance.deorbit.plan`)
+                  (:func:`lander_autopilot.guidance.deorbit.plan`, with the canopy's own limits)
     deorbit-burn  from the planned start: collective throttle with the attitude law's differential
                   on top (attitude priority), until the osculating periapsis is down to the plan's
                   (closed loop: the burn ends on the orbit reached, not on a timer)
     coast         throttles off: with no aerodynamic torque on the sphere the attitude drifts at
                   the rate the burn left, which the attitude law damped
-    entry         below the top of the atmosphere (200 km): the descent law flies from here (the
-                  landing law, :class:`.landing.LandingController`, with its braking profile
-                  ending at the demand altitude instead of the ground); attitude held upright,
-                  no thrust until its braking curve is reached
-    parachute     from the descent law's request to deploy the chute (when its drag and airspeed
-                  are within the canopy's limits, with margin)
-    powered-descent  once the descent law brakes (leaves its coast mode)
+    entry         below the top of the atmosphere (200 km). Chute first: thrust axis retrograde,
+                  no thrust unless a drag-only prediction of the rest of the entry
+                  (:func:`.guidance.deorbit.fly_entry`, every ``predict_every`` s) says the chute
+                  could not open within ``chute_margin`` of its limits at or above
+                  ``chute_altitude``; then it brakes at ``burn_throttle`` until it could
+    parachute     from the descent law's request to deploy the chute (drag and airspeed within
+                  ``chute_margin`` of the canopy's limits): no thrust, thrust axis along the
+                  airflow, while the chute brakes harder than the descent law would and until the
+                  descent law's braking curve (with the chute's drag, :class:`DescentToAltitude`)
+                  is reached
+    powered-descent  once the descent law brakes (leaves its coast mode): the landing law
+                  (:class:`.landing.LandingController`) with its profile ending at the demand
+                  altitude, braking at ``brake_fraction`` of the net thrust plus the chute's drag
     hover         within ``hover_band`` of the demand altitude and ``hover_speed`` of rest: the
                   ground-speed law (:class:`.ground_speed.GroundSpeedController`) holds the demand
                   altitude and zero ground speed
     landing       on demand (demand altitude 0 while hovering): the landing law to touchdown
 
+Why chute first: the canopy takes the lander from ~250 m/s to its terminal ~37 m/s for no fuel;
+from scenario 0's orbit the earlier law (braking on a drag-blind curve from 8.6 km) used 35 kg in
+its powered descent and could not land after 30 s of hover; chute first it uses 12 kg
+(docs/deorbit.md, ``bench/deorbit_fuel.py``).
+
 Everything here is core code (no rclpy): the same object flies in a sweep and in the node.
 """
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from dataclasses import dataclass
@@ -44,13 +57,21 @@ from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 from ..design.altitude import vertical_thrust
-from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, plan
+from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, fly_entry, plan
 from ._params import positive_param
 from .attitude import QuaternionAttitudeController
-from .base import REQUEST_DEPLOY_PARACHUTE, ControlOutput, Controller, Demand, saturate
+from .base import (
+    REQUEST_DEPLOY_PARACHUTE,
+    REQUEST_LANDING_UNREACHABLE,
+    Controller,
+    ControllerError,
+    ControlOutput,
+    Demand,
+    saturate,
+)
 from .combined import mix_with_attitude_priority
 from .ground_speed import GroundSpeedController
-from .landing import LandingController
+from .landing import MODES, LandingController
 
 
 class Phase(str, enum.Enum):
@@ -79,12 +100,42 @@ class PhaseLog:
 
 class DescentToAltitude(LandingController):
     """The landing law with its profile ending at ``floor`` [m] (the demand altitude) instead of the
-    ground: the braking and flare limbs are the same curves, lifted by ``floor``."""
+    ground: the braking and flare limbs are the same curves, lifted by ``floor``.
+
+    Under the open chute (``drag_k`` > 0: ``sum 1/2 Cd A`` of canopy and body [m^2]) the braking
+    limb is the one of constant thrust deceleration ``a_b`` plus the quadratic drag ``c v^2``,
+    ``c = drag_k rho(h) / m`` (density held at the current altitude's over the limb: it only grows
+    below, so the curve is conservative), ``d(v^2)/dh = 2 (a_b + c v^2)``, whose solution from the
+    flare entry ``(h_x, v_x)`` is ``v^2 = v_x^2 e^{2 c dh} + (a_b / c)(e^{2 c dh} - 1)``; the drag's
+    ``c h'^2`` is taken off the thrust demand (feedforward). Without it the drag-blind limb started
+    braking early and then throttled back as the chute helped: the longer burn cost 1.5-1.8 times
+    the minimum fuel from scenario 0's orbit (docs/deorbit.md).
+    """
 
     floor: float = 0.0
+    drag_k: float = 0.0
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
-        return super().vertical_acceleration(t, h - self.floor, hd, demand)
+        if self.drag_k <= 0.0:
+            return super().vertical_acceleration(t, h - self.floor, hd, demand)
+        r = c.MARS_RADIUS + h
+        g = c.GM_MARS / (r * r)
+        a_b = self.braking_acceleration(self._mass, g)
+        cd = self.drag_k * c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT) / self._mass
+        h_c = max(h - self.floor - self.half_size, 0.0)
+        v_x, h_x = self.flare_entry(a_b)
+        if h_c <= h_x:
+            v_d, slope, flare = -(self.v_td + self.k_f * h_c), -self.k_f, True
+        else:
+            e = math.exp(2.0 * cd * (h_c - h_x))
+            v = math.sqrt(v_x * v_x * e + (a_b / cd) * (e - 1.0)) if cd > 0.0 else math.sqrt(
+                v_x * v_x + 2.0 * a_b * (h_c - h_x))
+            v_d, slope, flare = -v, -(a_b + cd * v * v) / v, False
+        a_up = g + self.k_v * (v_d - hd) + slope * hd - cd * hd * abs(hd)
+        stage = 2 if flare else (1 if a_up >= 0.1 * g else 0)
+        if stage > MODES.index(self.mode):
+            self.mode = MODES[stage]
+        return a_up
 
     def tilt_limit(self, h: float) -> float:
         return super().tilt_limit(h - self.floor)
@@ -117,27 +168,52 @@ class DeorbitController(Controller):
     """Orbit to a hover, and to the ground on demand (module docstring). Parameters (SI): ``slew_time``
     [s] before the burn may start, ``burn_throttle`` (collective throttle of the burn, headroom left
     for the attitude law), ``hover_band`` [m] and ``hover_speed`` [m/s] (the powered descent hands
-    over to the hover within them), ``attitude_poles`` (of the quaternion attitude law),
+    over to the hover within them), ``chute_first`` (coast for the chute, module docstring),
+    ``chute_margin`` (fraction of the canopy's speed and drag limits the chute is opened within),
+    ``chute_altitude`` [m] (lowest planned and predicted opening), ``predict_every`` [s] (entry
+    prediction period), ``brake_fraction``, ``flare_rate`` [1/s], ``touchdown_rate`` [m/s] (the
+    descent law's profile to the hover: 0.95 of the net thrust and a quick flare ending at 0.5 m/s,
+    inside the hover band, keep the burn short: 1.07 x the minimum fuel against 1.7 x with the
+    landing law's 0.5, 0.3, 0.25), ``attitude_poles`` (of the quaternion attitude law),
     ``design_fuel`` [kg]."""
 
     name: ClassVar[str] = "deorbit"
 
     def __init__(self, vehicle: Vehicle, *, slew_time: float = 60.0, burn_throttle: float = 0.85,
-                 hover_band: float = 2.0, hover_speed: float = 1.0,
+                 hover_band: float = 2.0, hover_speed: float = 1.0, chute_first: bool = True,
+                 chute_margin: float = 0.9, chute_altitude: float = 3000.0, predict_every: float = 1.0,
+                 brake_fraction: float = 0.95, flare_rate: float = 2.0, touchdown_rate: float = 0.5,
                  attitude_poles: object = (-1.0,) * 6, design_fuel: float | None = None) -> None:
         super().__init__(vehicle)
         self.hover_band = positive_param("hover_band", hover_band)
         self.hover_speed = positive_param("hover_speed", hover_speed)
-        self.descent = DescentToAltitude(vehicle)
+        if not isinstance(chute_first, (bool, np.bool_)):
+            raise ControllerError(f"chute_first: expected true or false, got {chute_first!r}")
+        self.chute_first = bool(chute_first)
+        self.chute_margin = positive_param("chute_margin", chute_margin)
+        if self.chute_margin > 1.0:
+            raise ControllerError(f"chute_margin: expected a fraction in (0, 1], got {chute_margin!r}")
+        self.chute_altitude = positive_param("chute_altitude", chute_altitude)
+        self.predict_every = positive_param("predict_every", predict_every)
+        # canopy and body, 1/2 Cd A [m^2]: the descent law's drag once the chute is out
+        self._drag_k = (0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
+                        + 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA)
+        self.descent = DescentToAltitude(vehicle, chute_margin=self.chute_margin, brake_fraction=brake_fraction,
+                                         flare_rate=flare_rate, touchdown_rate=touchdown_rate)
         self.hover = GroundSpeedController(vehicle)
         self.landing = LandingController(vehicle)
         self.slew_time = positive_param("slew_time", slew_time)
         self.burn_throttle = positive_param("burn_throttle", burn_throttle)
         self.attitude = QuaternionAttitudeController(vehicle, poles=attitude_poles, design_fuel=design_fuel)
         # the burn runs at burn_throttle: the plan's exhaust speed is the same at any throttle
+        # The plan keeps the canopy's own limits (the corridor the vehicle survives); the entry
+        # predictor flown before the chute (_entry_command) keeps the descent law's margin on them.
         self.entry_vehicle = EntryVehicle(axial_thrust=vertical_thrust(vehicle) * self.burn_throttle,
                                           fuel_rate=self.descent.mdot_max * self.burn_throttle,
                                           dry_mass=vehicle.dry_mass)
+        self.chute_vehicle = dataclasses.replace(self.entry_vehicle,
+                                                 chute_max_speed=self.chute_margin * c.PARACHUTE_MAX_SPEED,
+                                                 chute_max_drag=self.chute_margin * c.PARACHUTE_MAX_DRAG)
         self.reset()
 
     def reset(self) -> None:
@@ -148,6 +224,10 @@ class DeorbitController(Controller):
         self.plan: DeorbitPlan | None = None
         self.log = PhaseLog([])
         self._t0: float | None = None
+        self._chute_open = False
+        self.descent.drag_k = 0.0
+        self._predicted_at = -math.inf
+        self._entry_brake = False
 
     def _to(self, t: float, phase: Phase, why: str) -> None:
         self.log.transitions.append((t, self.phase, phase, why))
@@ -158,10 +238,40 @@ class DeorbitController(Controller):
         if self.phase in DESCENT_PHASES:
             self.descent.floor = demand.altitude
             inner = self.descent.update(t, state, demand)
-            if self.phase is Phase.ENTRY and any(r.kind == REQUEST_DEPLOY_PARACHUTE for r in inner.requests):
-                self._to(t, Phase.PARACHUTE, "chute within its limits")
+            if not self._chute_open and any(r.kind == REQUEST_LANDING_UNREACHABLE for r in inner.requests):
+                # The law's fuel estimate is drag-free: at the top of the atmosphere, at orbital speed,
+                # it asked for more than the tank (103 kg from 200 km) for a descent that reached the
+                # hover with 80 kg. Not reported before the chute is out; re-armed for later.
+                inner = dataclasses.replace(inner, requests=tuple(
+                    r for r in inner.requests if r.kind != REQUEST_LANDING_UNREACHABLE))
+                self.descent._unreachable_raised = False
+            if any(r.kind == REQUEST_DEPLOY_PARACHUTE for r in inner.requests):
+                self._chute_open = True
+                self.descent.drag_k = self._drag_k
+                if self.phase is Phase.ENTRY:
+                    self._to(t, Phase.PARACHUTE, "chute within its limits")
+            if self.phase in (Phase.ENTRY, Phase.PARACHUTE) and self._waits_for_chute(state, demand):
+                # Chute first: no thrust while the chute is still to open or still brakes harder than
+                # the descent law's braking limb would; the law's mode goes back to coast, so that the
+                # powered descent begins where the law itself first brakes under the open chute.
+                self.descent.mode = "coast"
+                if not self._chute_open:
+                    coast = saturate(self._entry_command(t, state))
+                else:
+                    # under the chute: thrust axis against the velocity, where the canopy (attached
+                    # on body +z) pulls it anyway (holding the local vertical fought its torque)
+                    coast = saturate(self._retrograde(state, 0.0))
+                return ControlOutput(coast.throttles, coast.saturated, coast.unclipped, mode=self.phase.value,
+                                     requests=inner.requests)
             if self.phase in (Phase.ENTRY, Phase.PARACHUTE) and inner.mode != "coast":
                 self._to(t, Phase.POWERED, f"braking curve reached at {self._altitude(state):.0f} m")
+            elif self.chute_first and self._chute_open and self.phase is Phase.PARACHUTE:
+                # Still coasting under the chute: thrust axis along the airflow (as above), not the
+                # descent law's upright hold, which fought the canopy's torque while the horizontal
+                # speed decayed (4.7 kg from scenario 0's orbit). Its mode stays its own.
+                coast = saturate(self._retrograde(state, 0.0))
+                return ControlOutput(coast.throttles, coast.saturated, coast.unclipped, mode=self.phase.value,
+                                     requests=inner.requests)
             if self.phase is Phase.POWERED and demand.altitude > 0 and self._settled(state, demand):
                 self._to(t, Phase.HOVER, f"within {self.hover_band:g} m and {self.hover_speed:g} m/s of the hover")
             else:
@@ -178,6 +288,47 @@ class DeorbitController(Controller):
         return ControlOutput(inner.throttles, inner.saturated, inner.unclipped, mode=self.phase.value,
                              requests=inner.requests)
 
+    def _waits_for_chute(self, state: StateView, demand: Demand) -> bool:
+        """True while the chute-first descent coasts (no thrust; see :meth:`update`).
+
+        Before the chute opens: while the lander is above the lowest altitude the descent law may
+        open it at (``chute_min_altitude`` above contact and the floor); below that the law flies as
+        it would without a chute. After it opens: while the chute's and body's drag alone decelerate
+        the lander by more than the law's braking limb ``a_b`` (drag - weight > m a_b), which the law
+        never asks more of: thrust then would only replace deceleration the drag gives for free.
+        """
+        if not self.chute_first:
+            return False
+        h = self._altitude(state)
+        d = self.descent
+        if not self._chute_open:
+            return h - d.half_size - self.descent.floor > d.chute_min_altitude
+        r = c.MARS_RADIUS + h
+        g = c.GM_MARS / (r * r)
+        mass = self.vehicle.mass(state.fuel)
+        speed2 = float(state.v_W @ state.v_W)
+        rho = c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
+        drag = self._drag_k * rho * speed2
+        return drag / mass - g > d.braking_acceleration(mass, g)
+
+    def _entry_command(self, t: float, state: StateView) -> np.ndarray:
+        """Before the chute: thrust axis retrograde; brake (``burn_throttle``) only while a drag-only
+        prediction of the rest of the entry (:func:`.guidance.deorbit.fly_entry`, re-run every
+        ``predict_every`` s) says the chute could not open within the margin's limits at or above
+        ``chute_altitude``. The chute is the cheapest brake: thrust only buys the speed it needs."""
+        if t - self._predicted_at >= self.predict_every:
+            self._predicted_at = t
+            check = fly_entry(state.r_W, state.v_W, self.vehicle.mass(state.fuel), self.chute_vehicle)
+            self._entry_brake = not (check.survivable and check.chute_altitude >= self.chute_altitude)
+        retro = -state.v_W / float(np.linalg.norm(state.v_W))
+        d = self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state)
+        return mix_with_attitude_priority(self.burn_throttle if self._entry_brake else 0.0, d)
+
+    def _retrograde(self, state: StateView, collective: float) -> np.ndarray:
+        """Throttles holding the thrust axis against the velocity (attitude priority) [unclipped]."""
+        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), 1e-9)
+        return mix_with_attitude_priority(collective, self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state))
+
     @staticmethod
     def _altitude(state: StateView) -> float:
         return float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
@@ -186,11 +337,23 @@ class DeorbitController(Controller):
         return (abs(self._altitude(state) - demand.altitude) <= self.hover_band
                 and float(np.linalg.norm(state.v_W)) <= self.hover_speed)
 
+    def start_in(self, phase: Phase, chute_open: bool = False) -> None:
+        """Begin the mission at ``phase`` (ENTRY or later) with no de-orbit plan: for flights that
+        start from a state inside the atmosphere, e.g. one handover case flown by both descent laws."""
+        if phase in (Phase.SLEW, Phase.BURN, Phase.COAST):
+            raise ControllerError(f"start_in: the phases before entry need the de-orbit plan, got {phase.value!r}")
+        self.reset()
+        self.phase, self._chute_open = phase, bool(chute_open)
+        self.descent.drag_k = self._drag_k if chute_open else 0.0
+        self.descent._chute_requested = self._chute_open  # the chute is out: the law must not ask again
+
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
+        if self.phase not in (Phase.SLEW, Phase.BURN, Phase.COAST):
+            return np.zeros(self.n_thrusters)  # from entry on, update() flies the descent laws
         if self.plan is None:
             self._t0 = t
             self.plan = plan(state.r_W, state.v_W, self.vehicle.mass(state.fuel), self.entry_vehicle,
-                             slew_time=self.slew_time)
+                             slew_time=self.slew_time, min_chute_altitude=self.chute_altitude)
         since = t - (self._t0 or 0.0)
         altitude = self._altitude(state)
         if self.phase is Phase.SLEW and since >= self.plan.burn_start:

@@ -13,6 +13,7 @@ easy way). No change to this package is needed. Built-in names win over plug-ins
 from __future__ import annotations
 
 import inspect
+import typing
 from collections.abc import Callable
 from importlib.metadata import entry_points
 from typing import Any
@@ -25,6 +26,7 @@ from .attitude import EulerAttitudeController, QuaternionAttitudeController
 from .base import Controller, ControllerError
 from .combined import CombinedController, CombinedQuaternionController, IntegralController, LQRController
 from .deorbit import DeorbitController
+from .deorbit_mpc import DeorbitMpcController
 from .ground_speed import GroundSpeedController
 from .landing import LandingController
 
@@ -48,6 +50,7 @@ BUILTINS: dict[str, Factory] = {
         GroundSpeedController,
         LandingController,
         DeorbitController,
+        DeorbitMpcController,
     )
 }
 
@@ -62,13 +65,29 @@ def available_controllers() -> list[str]:
     return sorted(set(BUILTINS) | set(_plugins()))
 
 
+def _accepted(factory: Factory) -> list[str] | None:
+    """The keyword parameters ``factory`` takes after the vehicle, sorted; ``None`` if it takes any
+    (a plain ``**params``: it checks them itself). ``**params: Unpack[SomeTypedDict]`` takes that
+    TypedDict's keys (the summed laws' :class:`~.combined.SumParams`)."""
+    try:
+        ps = list(inspect.signature(factory, eval_str=True).parameters.values())
+    except Exception:  # noqa: BLE001 - a plug-in's annotations may not evaluate here: read them as written
+        ps = list(inspect.signature(factory).parameters.values())
+    names = {p.name for p in ps if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.name != "vehicle")}
+    for p in ps:
+        if p.kind is p.VAR_KEYWORD:
+            typed = typing.get_args(p.annotation) if typing.get_origin(p.annotation) is typing.Unpack else ()
+            if len(typed) != 1 or not typing.is_typeddict(typed[0]):
+                return None
+            names |= set(typed[0].__annotations__)
+    return sorted(names)
+
+
 def _check_params(name: str, factory: Factory, params: dict[str, object]) -> None:
     """Unknown parameter names fail with the list of accepted ones (not a bare TypeError)."""
-    sig = inspect.signature(factory)
-    ps = list(sig.parameters.values())
-    if any(p.kind is p.VAR_KEYWORD for p in ps):
+    allowed = _accepted(factory)
+    if allowed is None:
         return  # a plug-in taking **params validates them itself
-    allowed = sorted(p.name for p in ps if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD and p.name != "vehicle"))
     unknown = sorted(set(params) - set(allowed))
     if unknown:
         raise ControllerError(

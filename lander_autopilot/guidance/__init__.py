@@ -2,7 +2,8 @@
 
 * :mod:`.deorbit`       the de-orbit burn (direction, size, timing, fuel) into a survivable entry
 * :mod:`.fuel_optimal`  minimum-fuel powered descent by lossless convexification (Acikmese and
-  Ploen 2007): the yardstick the flown descent laws are measured against.
+  Ploen 2007), with the open chute's drag by successive convexification: the yardstick the
+  flown descent laws are measured against (docs/deorbit.md).
 * :mod:`.descent_mpc`   model predictive control of the powered descent, tracking that optimum
   within the thrust, pointing and glide-slope limits (one cone-constrained QP a control period).
 """

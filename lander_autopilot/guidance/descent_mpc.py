@@ -13,6 +13,11 @@ steps of ``h`` s: a point mass ``x = (r, v)`` under uniform gravity, the command
                |r_k - target|_xy tan(glide_slope) <= (r_k - target)_z    (glide slope),
                r_k . z >= 0                                             (never below the surface)
 
+With ``drag`` (:class:`.fuel_optimal.DragModel`, e.g. the open chute's) the reference is the
+minimum-fuel descent with that drag, and the prediction adds the drag acceleration along the
+reference (at the measured state for the first step) as a known term: the QP stays a QP, and the
+feedback takes up the difference between the reference's drag and the true one.
+
 The reference is the minimum-fuel descent from the handover state (:func:`.fuel_optimal.solve`),
 solved once with a thrust margin (``reference_thrust_fraction``, default 0.95 of ``rho_max``) so
 that the feedback has authority left when the vehicle is off the reference; past its end it is a
@@ -34,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, GuidanceError, solve
+from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, DragModel, GuidanceError, solve
 
 
 @dataclass(frozen=True)
@@ -101,7 +106,8 @@ class DescentMpc:
 
     def __init__(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float, gravity: float,
                  limits: DescentLimits, target_L: np.ndarray | None = None,
-                 settings: MpcSettings | None = None, free_horizontal: bool = False) -> None:
+                 settings: MpcSettings | None = None, free_horizontal: bool = False,
+                 drag: DragModel | None = None) -> None:
         import cvxpy as cp
 
         self.settings = st = settings or MpcSettings()
@@ -113,11 +119,12 @@ class DescentMpc:
         # The final time needs no more precision than a control period: fuel is flat near its optimum.
         reference = solve(DescentProblem(position_L=position_L, velocity_L=velocity_L, mass=mass,
                                          gravity=gravity, limits=ref_limits, target_L=self.target,
-                                         free_horizontal=free_horizontal),
+                                         free_horizontal=free_horizontal, drag=drag),
                           steps=st.reference_steps, t_tol=1e-3)
         if free_horizontal:  # a hover wherever the optimum ends it: that point is the target
             self.target = np.array(reference.position_L[-1])
         self.reference = Reference(reference, gravity, self.target)
+        self.drag = drag
         self.stats = MpcStats()
         H, h = st.horizon_steps, st.step
         # exact discretisation of r'' = a + g_L with a held over the step
@@ -125,13 +132,16 @@ class DescentMpc:
         self._xref = cp.Parameter((H + 1, 6))
         self._aref = cp.Parameter((H, 3))
         self._amax = cp.Parameter(nonneg=True)
+        # drag acceleration over each predicted step, evaluated along the reference (an affine,
+        # known term: the reference is drag-consistent, and the feedback takes the difference)
+        self._adrag = cp.Parameter((H, 3))
         x = cp.Variable((H + 1, 6))
         a = cp.Variable((H, 3))
         g_L = np.array([0.0, 0.0, -self.g])
         q = np.r_[[st.position_weight] * 3, [st.velocity_weight] * 3]
         cons = [x[0] == self._x0,
-                x[1:, :3] == x[:-1, :3] + h * x[:-1, 3:] + (h * h / 2) * (a + np.ones((H, 1)) @ g_L[None, :]),
-                x[1:, 3:] == x[:-1, 3:] + h * (a + np.ones((H, 1)) @ g_L[None, :]),
+                x[1:, :3] == x[:-1, :3] + h * x[:-1, 3:] + (h * h / 2) * (a + self._adrag + np.ones((H, 1)) @ g_L[None, :]),
+                x[1:, 3:] == x[:-1, 3:] + h * (a + self._adrag + np.ones((H, 1)) @ g_L[None, :]),
                 cp.norm(a, axis=1) <= self._amax,
                 a[:, 2] >= math.cos(limits.max_tilt) * cp.norm(a, axis=1),
                 x[:, 2] >= 0]
@@ -162,6 +172,13 @@ class DescentMpc:
                 ar[k] = acc
         self._x0.value = np.r_[position_L, velocity_L]
         self._xref.value, self._aref.value = xr, ar
+        if self.drag is None:
+            self._adrag.value = np.zeros((H, 3))
+        else:
+            # along the reference, except the first step: at the measured state
+            pos, vel = xr[:H, :3].copy(), xr[:H, 3:].copy()
+            pos[0], vel[0] = position_L, velocity_L
+            self._adrag.value = self.drag.acceleration(pos, vel, np.full(H, mass))
         self._amax.value = self.limits.rho_max / mass
         t0 = time.perf_counter()
         try:

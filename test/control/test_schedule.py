@@ -3,7 +3,6 @@ and the same numbers as python-control's gain-scheduled state feedback."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from lander_autopilot.design.gains import closed_loop_poles, match_poles
 from lander_autopilot.design.schedule import schedule_vertical, to_iosystem, vertical_descent_model

@@ -1,0 +1,178 @@
+"""``deorbit-mpc``: the de-orbit mission with model predictive control flying the powered descent.
+
+"Extended Mars lander, part 2: control", section 6 (de-orbit, model predictive control). Every
+phase is :class:`.deorbit.DeorbitController`'s (slew, burn, coast, entry, parachute, hover,
+landing); only ``powered-descent`` differs. At the handover (the instant the scheduled descent law
+would start braking under the open chute) this law
+
+1. builds the point-mass problem of the rest of the descent in the local frame of the handover
+   point (:func:`handover_problem`: ENU at the handover position, origin on the surface below it,
+   z = altitude; thrust, fuel flow and tilt limit of the vehicle; the open chute's and the body's
+   drag) and
+2. flies it with :class:`lander_autopilot.guidance.descent_mpc.DescentMpc`: each control period a
+   cone-constrained QP (cvxpy + Clarabel) over a short horizon tracks the minimum-fuel reference
+   (:func:`lander_autopilot.guidance.fuel_optimal.solve`, lossless convexification with the drag
+   re-linearised) within the throttle limit, the tilt limit and a glide slope.
+
+The thrust vector the QP asks for becomes a thrust-axis attitude (the quaternion attitude law,
+attitude priority) and a collective throttle ``|T| / T_axial``. The phase ends as the scheduled
+law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand, the ground-speed law holds
+the hover. Core code (no rclpy); solve times are kept (:meth:`DeorbitMpcController.diagnostics`).
+"""
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from lander_sim.physics import constants as c
+from lander_sim.physics.state import StateView
+from lander_sim.physics.vehicle import Vehicle
+
+from ..design.altitude import vertical_thrust
+from ..guidance.descent_mpc import DescentMpc, MpcSettings
+from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError
+from ._params import positive_param
+from .attitude import QuaternionAttitudeController
+from .base import ControllerError, ControlOutput, Demand, saturate
+from .combined import mix_with_attitude_priority
+from .deorbit import DeorbitController, Phase, thrust_axis_attitude
+
+
+def local_frame(r_W: np.ndarray) -> np.ndarray:
+    """Rows ``(east, north, up)`` of the local ENU frame at ``r_W`` (docs/control.md, ``local_enu``)."""
+    up = np.asarray(r_W, float) / float(np.linalg.norm(r_W))
+    east = np.cross([0.0, 0.0, 1.0], up)
+    n = float(np.linalg.norm(east))
+    east = np.array([1.0, 0.0, 0.0]) if n < 1e-9 else east / n
+    return np.vstack([east, np.cross(up, east), up])
+
+
+def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
+                     max_tilt: float = 0.7, chute_open: bool = True) -> tuple[DescentProblem, np.ndarray]:
+    """The minimum-fuel problem from a handover state to rest at ``demand_altitude`` [m], and its frame.
+
+    Local frame: ENU at ``r_W`` (rows of the returned 3x3 ``L``), origin on the surface below,
+    z the altitude; the hover point's horizontal position is free. Thrust: every thruster flat
+    out along body z (``T_axial``, the canted layout's axial share); ``alpha = mdot_max / T_axial``.
+    Gravity at the handover altitude (uniform over a powered phase of ~1 km). Drag: the sphere's
+    and, with ``chute_open``, the parachute's (``1/2 Cd A`` each, exponential atmosphere).
+    """
+    L = local_frame(r_W)
+    h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
+    axial = vertical_thrust(vehicle)
+    mdot = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)
+    limits = DescentLimits(rho_max=axial, alpha=mdot / axial, dry_mass=vehicle.dry_mass, max_tilt=max_tilt)
+    k = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA
+    if chute_open:
+        k += 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
+    drag = DragModel(k, c.ATMOSPHERE_SURFACE_DENSITY, c.ATMOSPHERE_SCALE_HEIGHT)
+    r = c.MARS_RADIUS + h
+    problem = DescentProblem(position_L=np.array([0.0, 0.0, h]), velocity_L=L @ np.asarray(v_W, float),
+                             mass=vehicle.mass(fuel), gravity=c.GM_MARS / (r * r), limits=limits,
+                             target_L=np.array([0.0, 0.0, demand_altitude]), free_horizontal=True, drag=drag)
+    return problem, L
+
+
+class DeorbitMpcController(DeorbitController):
+    """:class:`.deorbit.DeorbitController` with MPC in the powered descent (module docstring).
+
+    Extra parameters (SI): ``horizon_steps``, ``mpc_step`` [s] (prediction step), ``max_tilt`` [rad]
+    (tilt limit of the thrust in the QP), ``glide_slope`` [rad] (0: none; the hover has no landing
+    spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference);
+    ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
+    the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so the reference flown at
+    95 % thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
+    """
+
+    name: ClassVar[str] = "deorbit-mpc"
+
+    def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, mpc_step: float = 0.5, max_tilt: float = 0.7,
+                 glide_slope: float = 0.0, reference_steps: int = 20, slew_time: float = 60.0,
+                 burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 1.0,
+                 chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
+                 predict_every: float = 1.0, brake_fraction: float = 0.5, attitude_poles: object = (-1.0,) * 6,
+                 design_fuel: float | None = None) -> None:
+        # the parent's parameters spelt out, so that the registry names an unknown one
+        super().__init__(vehicle, slew_time=slew_time, burn_throttle=burn_throttle, hover_band=hover_band,
+                         hover_speed=hover_speed, chute_first=chute_first, chute_margin=chute_margin,
+                         chute_altitude=chute_altitude, predict_every=predict_every, brake_fraction=brake_fraction,
+                         attitude_poles=attitude_poles, design_fuel=design_fuel)
+        if not isinstance(horizon_steps, int) or horizon_steps < 2:
+            raise ControllerError(f"horizon_steps: expected an integer >= 2, got {horizon_steps!r}")
+        if not isinstance(reference_steps, int) or reference_steps < 10:
+            raise ControllerError(f"reference_steps: expected an integer >= 10, got {reference_steps!r}")
+        self.max_tilt = positive_param("max_tilt", max_tilt)
+        if self.max_tilt > math.pi / 2:
+            raise ControllerError(f"max_tilt: expected at most pi/2 rad, got {max_tilt!r}")
+        if not (0.0 <= float(glide_slope) < math.pi / 2):
+            raise ControllerError(f"glide_slope: expected a value in [0, pi/2) rad, got {glide_slope!r}")
+        self.glide_slope = float(glide_slope)
+        self.settings = MpcSettings(horizon_steps=horizon_steps, step=positive_param("mpc_step", mpc_step),
+                                    reference_steps=reference_steps)
+        self.axial = vertical_thrust(vehicle)
+        # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
+        # changes within seconds (the ground-speed law's inner loop uses the same -2)
+        self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(-2.0,) * 6)
+
+    def reset(self) -> None:
+        super().reset()
+        if hasattr(self, "mpc_attitude"):
+            self.mpc_attitude.reset()
+        self.mpc: DescentMpc | None = None
+        self._frame: np.ndarray | None = None
+        self._origin: np.ndarray | None = None
+        self._t_handover = 0.0
+        self.reference_time = math.nan  # wall time of the handover's reference solve [s]
+        self.thrust_L: np.ndarray | None = None
+
+    def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
+        out = super().update(t, state, demand)
+        if self.phase is not Phase.POWERED:
+            return out
+        if self.mpc is None:
+            self._start(t, state, demand)
+        if self.mpc is None:  # no feasible reference: the scheduled law flies on (reported in diagnostics)
+            return out
+        L, r0 = self._frame, self._origin
+        assert L is not None and r0 is not None
+        h = float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
+        d = L @ (state.r_W - r0)
+        p_L = np.array([d[0], d[1], h])
+        v_L = L @ state.v_W
+        T_L = self.mpc.command(t - self._t_handover, p_L, v_L, self.vehicle.mass(state.fuel))
+        self.thrust_L = T_L  # the QP's thrust this period [N, handover's local ENU frame]
+        mag = float(np.linalg.norm(T_L))
+        direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
+        diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
+        u = saturate(mix_with_attitude_priority(mag / self.axial, diff))
+        return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
+
+    def _start(self, t: float, state: StateView, demand: Demand) -> None:
+        import time
+
+        problem, L = handover_problem(self.vehicle, state.r_W, state.v_W, state.fuel, demand.altitude,
+                                      max_tilt=self.max_tilt, chute_open=self._chute_open)
+        limits = DescentLimits(rho_max=problem.limits.rho_max, alpha=problem.limits.alpha,
+                               dry_mass=problem.limits.dry_mass, max_tilt=self.max_tilt, glide_slope=self.glide_slope)
+        t0 = time.perf_counter()
+        try:
+            self.mpc = DescentMpc(problem.position_L, problem.velocity_L, problem.mass, problem.gravity, limits,
+                                  target_L=problem.target_L, settings=self.settings, free_horizontal=True,
+                                  drag=problem.drag)
+        except GuidanceError as exc:
+            self.mpc = None
+            self.log.transitions.append((t, self.phase, self.phase, f"MPC refused the handover ({exc}): scheduled law flies"))
+        self.reference_time = time.perf_counter() - t0
+        self._frame, self._origin, self._t_handover = L, np.array(state.r_W, float), t
+
+    def diagnostics(self) -> dict[str, float]:
+        """Solve-time figures of the MPC [s] and counts, for the node's diagnostics (SI units)."""
+        if self.mpc is None:
+            return {"mpc_solves": 0.0, "mpc_reference_time": self.reference_time}
+        st = self.mpc.stats
+        return {"mpc_solves": float(len(st.solve_times)), "mpc_failures": float(st.failures),
+                "mpc_solve_time_median": st.percentile(50), "mpc_solve_time_p99": st.percentile(99),
+                "mpc_solve_time_max": max(st.solve_times) if st.solve_times else math.nan,
+                "mpc_solve_time_total": float(sum(st.solve_times)), "mpc_reference_time": self.reference_time}

@@ -1,0 +1,133 @@
+"""The powered descent flown by both de-orbit laws from one handover case, core-only: the scheduled
+descent law (``deorbit``) and model predictive control (``deorbit-mpc``), against the convex optimum
+from the same state ("Extended Mars lander, part 2: control", section 6; docs/deorbit.md)."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from lander_autopilot.controllers import Demand
+from lander_autopilot.controllers.base import ControllerError
+from lander_autopilot.controllers.deorbit import Phase, thrust_axis_attitude
+from lander_autopilot.controllers.deorbit_mpc import handover_problem
+from lander_autopilot.controllers.registry import make_controller
+from lander_sim.physics import constants as c
+from lander_sim.scenes import load_scene
+from lander_sim.simulation import Simulation
+
+# Scenario 0's orbit flown by the scheduled law: the state under the open chute some 7 s before its
+# powered descent (t = 4639.9 s of `lander fly deorbit`), rounded; straight down, no wind.
+HEIGHT, CLIMB, FUEL = 852.0, -36.8, 67.39
+PERIOD = 0.1  # the scene's control period [s]
+
+
+def _handover_sim():
+    sc = load_scene("deorbit")
+    y = sc.initial_state.copy()
+    y[0:3] = (c.MARS_RADIUS + HEIGHT, 0.0, 0.0)
+    y[3:6] = (CLIMB, 0.0, 0.0)
+    y[6:10] = thrust_axis_attitude(y[6:10], np.array([1.0, 0.0, 0.0]))  # thrust axis up
+    y[10:13] = 0.0
+    y[13] = FUEL
+    sc = dataclasses.replace(sc, initial_state=y)
+    sim = Simulation(sc)
+    sim.deploy_parachute()
+    return sc, sim
+
+
+def _fly_to_hover(law: str):
+    """Fly ``law`` from the handover case until its hover phase begins; returns (controller, fuel used, log)."""
+    sc, sim = _handover_sim()
+    ctrl = make_controller(law, sc.vehicle)
+    ctrl.start_in(Phase.PARACHUTE, chute_open=True)
+    demand = Demand(altitude=500.0)
+    log = []
+    while sim.t < 120.0:
+        s = sim.state()
+        out = ctrl.update(sim.t, s, demand)
+        thrust = getattr(ctrl, "thrust_L", None)
+        log.append((sim.t, ctrl.phase, s, out, None if thrust is None else np.array(thrust)))
+        if ctrl.phase is Phase.HOVER:
+            return ctrl, FUEL - s.fuel, log
+        sim.set_throttles(out.throttles)
+        sim.step()
+        assert not [e for e in sim.drain_events() if e.kind.name in ("CRASHED", "LANDED", "HARD_LANDING")]
+    raise AssertionError(f"{law}: no hover within 120 s (phase {ctrl.phase.value})")
+
+
+@pytest.fixture(scope="module")
+def flights():
+    return {law: _fly_to_hover(law) for law in ("deorbit", "deorbit-mpc")}
+
+
+def test_both_laws_fly_the_same_handover_to_the_hover(flights):
+    for law, (_, used, log) in flights.items():
+        phases = [p for _, p, *_ in log]
+        assert Phase.POWERED in phases, law
+        s = log[-1][2]
+        # the hover phase begins within its band (2 m, 1 m/s) of the demand
+        assert abs(float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - 500.0) <= 2.0
+        assert float(np.linalg.norm(s.v_W)) <= 1.0
+        assert 0.0 < used < FUEL
+    mpc = flights["deorbit-mpc"][0]
+    d = mpc.diagnostics()
+    assert d["mpc_failures"] == 0 and d["mpc_solves"] > 10
+    # the issue's bound: each period's QP solved within the control period (p99)
+    assert d["mpc_solve_time_p99"] < PERIOD, d
+
+
+def test_mpc_thrust_keeps_the_thrust_and_tilt_limits(flights):
+    # the QP's thrust each period: within the thrust bound and max_tilt of the handover's vertical
+    # (its cone constraints; Clarabel's feasibility tolerance ~1e-8 relative)
+    ctrl, _, log = flights["deorbit-mpc"]
+    thrusts = [T for _, phase, _, _, T in log if phase is Phase.POWERED and T is not None]
+    assert len(thrusts) > 10
+    for T in thrusts:
+        mag = float(np.linalg.norm(T))
+        assert mag <= ctrl.axial * (1 + 1e-6)
+        if mag > 1e-3 * ctrl.axial:
+            assert math.acos(min(1.0, T[2] / mag)) <= ctrl.max_tilt + 1e-6
+
+
+@pytest.mark.slow  # the optimum with drag: ~15 s of convex solves (45 s on the shared machine)
+def test_fuel_against_the_convex_optimum_from_the_same_state(flights):
+    sc, sim = _handover_sim()
+    s = sim.state()
+    problem, _ = handover_problem(sc.vehicle, s.r_W, s.v_W, s.fuel, 500.0)
+    from lander_autopilot.guidance.fuel_optimal import solve
+
+    best = solve(problem, steps=60, t_tol=1e-4).fuel
+    ratios = {law: used / best for law, (_, used, _) in flights.items()}
+    print(f"optimum {best:.3f} kg; flown / optimum: {ratios}")
+    # Nothing flies below the optimum, up to its own discretisation (60 nodes: ~1e-3, measured 6e-5
+    # between 30 and 60 nodes) and the convergence test of its drag iteration (1e-3 of the fuel).
+    assert min(ratios.values()) >= 1 - 2e-3
+    # issue 14's acceptance with no dispersions: 1.03 times the optimum
+    assert ratios["deorbit-mpc"] <= 1.03
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the scheduled descent law flies 1.06 x the optimum from this handover "
+                   "(docs/deorbit.md): the profile keeps 5 % of the thrust and a flare for feedback")
+def test_scheduled_law_within_1_03_of_the_optimum(flights):
+    sc, sim = _handover_sim()
+    s = sim.state()
+    problem, _ = handover_problem(sc.vehicle, s.r_W, s.v_W, s.fuel, 500.0)
+    from lander_autopilot.guidance.fuel_optimal import solve
+
+    assert flights["deorbit"][1] <= 1.03 * solve(problem, steps=60, t_tol=1e-4).fuel
+
+
+def test_bad_mpc_parameters_name_the_key():
+    sc = load_scene("deorbit")
+    with pytest.raises(ControllerError, match="horizon_steps"):
+        make_controller("deorbit-mpc", sc.vehicle, horizon_steps=1)
+    with pytest.raises(ControllerError, match="max_tilt"):
+        make_controller("deorbit-mpc", sc.vehicle, max_tilt=2.0)
+    with pytest.raises(ControllerError, match="unknown parameter"):
+        make_controller("deorbit-mpc", sc.vehicle, horizon=3)
+    with pytest.raises(ControllerError, match="chute_margin"):
+        make_controller("deorbit", sc.vehicle, chute_margin=1.5)

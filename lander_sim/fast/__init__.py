@@ -26,7 +26,12 @@ def unsupported_reason(scene: Any, integrator: str | None = None) -> str | None:
     if (integrator or scene.integrator) != "verlet":
         return f"integrator {(integrator or scene.integrator)!r} (fast path is velocity Verlet only)"
     if scene.attitude != "quaternion":
-        return "Euler-angle attitude (fast path is quaternion only)"
+        # Not the kernel's limit (verlet_step flies Euler angles: the integrator's compiled Verlet
+        # runs them one step per call) but its callers': the Simulation checks gimbal lock after
+        # each multi-step call, so an entry inside one would fire late or not at all, and the
+        # batched sweep's compiled controllers read y[6:10] as a quaternion.
+        return ("Euler-angle attitude (the multi-step fast path and the batched sweep are quaternion only; "
+                "the compiled Verlet steps Euler scenes one step per call)")
     if not scene.translation:
         return "fixed pivot"
     other = sorted(set(m.configs) - _SUPPORTED)

@@ -8,7 +8,12 @@ numpy path (:class:`lander_sim.physics.dynamics.LanderDynamics` + :class:`lander
   ``F_W = 1/2 rho Cd A |W| W`` with ``W = wind_W - v_W``;
 * thrusters ``F_B = sum_i t_i F_i``, ``Q_B = sum_i t_i (p_i x F_i)``, fuel ``-sum_i t_i burn_i``;
 * ``a_W = (F_W + R(q)^T F_B) / m`` (eq 13), Euler's equations (eq 1-2) with ``I = m diag(k^2)``;
-* velocity Verlet (seed 1 section 5), quaternion by eq 14 and renormalised (seed 1 task 3).
+* velocity Verlet (seed 1 section 5), quaternion by eq 14 and renormalised (seed 1 task 3);
+* Euler-angle mode (``params[P_EULER]``, the eq 5/6 teaching route): ZXZ angles in ``y[6:9]``,
+  ``R(E)`` of eq 3, ``E' = J(E) omega`` (eq 5) and ``E'' = J' omega + J omega'`` (eq 6, ``J'``
+  of eq 7), with ``sin(theta)`` floored at ``params[P_SIN_FLOOR]`` as
+  :func:`lander_sim.physics.rotation._guarded_sin` does, so gimbal lock gives the numpy path's
+  finite-but-wrong numbers; ``params[P_PIVOT]``: a fixed pivot (``r``, ``v`` left alone).
 
 Everything is scalar code in one function, so numba compiles it to a loop with no
 allocation; without numba the same function runs as (slow) plain Python.
@@ -35,13 +40,53 @@ except ImportError:  # pragma: no cover - exercised only where numba is absent
 # ``point_B`` (torque ``point_B x R F_W``: the seed-1 rotor) serve the compiled Runge-Kutta methods.
 P_GM, P_RPLANET, P_RHO0, P_H, P_EXO, P_CD, P_AREA, P_DRY, P_K1, P_K2, P_K3, P_FIXED_I, P_GRAV, P_ATMO, P_DRAG, P_THRUST, P_RENORM = range(17)
 P_UGRAV, P_G0, P_CFORCE, P_CF0, P_CP0 = 17, 18, 21, 22, 25
-N_PARAMS = 28
+# Attitude mode and mount, appended so that an all-zero tail is the quaternion, free-flying lander
+# every other packer (the batched sweep, bench/speed.py) already builds: 1.0 = ZXZ Euler angles
+# (eq 3, 5, 6) / fixed pivot; the floor of |sin theta| travels with the parameters rather than as
+# a compile-time global, which numba's cache would freeze (rotation.SIN_THETA_FLOOR may change).
+P_EULER, P_PIVOT, P_SIN_FLOOR = 28, 29, 30
+N_PARAMS = 31
+
+
+@njit(cache=True)
+def euler_rates_matrix(theta, psi, floor):  # pragma: no cover - compiled
+    """``J`` of eq 5 (``E' = J omega``) as ``rotation.euler_rates_matrix``: its first two columns
+    ``(J00, J01, J10, J11, J20, J21)``; the third is ``(0, 0, 1)``. ``|sin theta|`` floored at ``floor``."""
+    st = math.sin(theta)
+    if abs(st) < floor:  # rotation._guarded_sin: finite (and wrong) at gimbal lock, sign kept
+        st = floor if st >= 0.0 else -floor
+    ct = math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
+    return sp / st, cp / st, cp, -sp, -ct * sp / st, -ct * cp / st
+
+
+@njit(cache=True)
+def euler_rates_matrix_dot(theta, psi, th_d, ps_d, floor):  # pragma: no cover - compiled
+    """``J'`` of eq 7 as ``rotation.euler_rates_matrix_dot`` (same operation order): its first two
+    columns ``(D00, D01, D10, D11, D20, D21)``; the third is zero."""
+    st = math.sin(theta)
+    if abs(st) < floor:
+        st = floor if st >= 0.0 else -floor
+    ct = math.cos(theta)
+    sp, cp = math.sin(psi), math.cos(psi)
+    tt = st / ct if ct != 0.0 else math.inf
+    return (-sp / (st * tt) * th_d + cp / st * ps_d, -cp / (st * tt) * th_d - sp / st * ps_d,
+            -ps_d * sp, -ps_d * cp,
+            sp / (st * st) * th_d - ct * cp / st * ps_d, cp / (st * st) * th_d + ct * sp / st * ps_d)
+
+
+@njit(cache=True)
+def euler_rates(y, floor):  # pragma: no cover - compiled
+    """``E' = J(E) omega`` (eq 5) of state ``y``: the numpy path's ``J @ omega``, row by row with
+    the third column's 0 and 1 multiplied out (a NaN or inf rate propagates as it does there)."""
+    j00, j01, j10, j11, j20, j21 = euler_rates_matrix(y[7], y[8], floor)
+    w0, w1, w2 = y[10], y[11], y[12]
+    return (j00 * w0 + j01 * w1 + 0.0 * w2, j10 * w0 + j11 * w1 + 0.0 * w2, j20 * w0 + j21 * w1 + 1.0 * w2)
 
 
 @njit(cache=True)
 def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: no cover - compiled
     """``out[0:3] = a_W``, ``out[3:6] = omega_dot_B`` for state ``y``; returns nothing."""
-    s, a, b, c = y[6], y[7], y[8], y[9]
     fuel = y[13]
     mass = params[P_DRY] + fuel
     x, yy, z = y[0], y[1], y[2]
@@ -84,16 +129,34 @@ def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: n
             qx += t * torque[i, 0]
             qy += t * torque[i, 1]
             qz += t * torque[i, 2]
-    # R(q)^T F_B with R of eq 13 (columns of R are rows of R^T).
-    r00 = s * s + a * a - b * b - c * c
-    r01 = 2.0 * (a * b + s * c)
-    r02 = 2.0 * (a * c - s * b)
-    r10 = 2.0 * (a * b - s * c)
-    r11 = s * s - a * a + b * b - c * c
-    r12 = 2.0 * (s * a + b * c)
-    r20 = 2.0 * (s * b + a * c)
-    r21 = 2.0 * (b * c - s * a)
-    r22 = s * s - a * a - b * b + c * c
+    # World-to-body R (columns of R are rows of R^T, used below for R^T F_B).
+    if params[P_EULER] != 0.0:
+        # R = Rz(psi) Rx(theta) Rz(phi) of the ZXZ angles (eq 3), as rotation.euler_to_matrix.
+        phi, theta, psi = y[6], y[7], y[8]
+        cf, sf = math.cos(phi), math.sin(phi)
+        ct, st = math.cos(theta), math.sin(theta)
+        cp, sp = math.cos(psi), math.sin(psi)
+        r00 = cp * cf - sp * ct * sf
+        r01 = cp * sf + sp * ct * cf
+        r02 = sp * st
+        r10 = -sp * cf - cp * ct * sf
+        r11 = -sp * sf + cp * ct * cf
+        r12 = cp * st
+        r20 = st * sf
+        r21 = -st * cf
+        r22 = ct
+    else:
+        # R(q) of eq 13, as rotation.quat_to_matrix.
+        s, a, b, c = y[6], y[7], y[8], y[9]
+        r00 = s * s + a * a - b * b - c * c
+        r01 = 2.0 * (a * b + s * c)
+        r02 = 2.0 * (a * c - s * b)
+        r10 = 2.0 * (a * b - s * c)
+        r11 = s * s - a * a + b * b - c * c
+        r12 = 2.0 * (s * a + b * c)
+        r20 = 2.0 * (s * b + a * c)
+        r21 = 2.0 * (b * c - s * a)
+        r22 = s * s - a * a - b * b + c * c
     if params[P_CFORCE] != 0.0:
         cf0, cf1, cf2 = params[P_CF0], params[P_CF0 + 1], params[P_CF0 + 2]
         fwx += cf0
@@ -121,7 +184,13 @@ def _accelerations(y, params, force, torque, throttles, wind, out):  # pragma: n
 
 @njit(cache=True)
 def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est):  # pragma: no cover - compiled
-    """One velocity-Verlet step of ``dt`` [s] of ``y`` (14,) in place; ``a0``/``a1`` (6,) and ``est`` (14,) are scratch."""
+    """One velocity-Verlet step of ``dt`` [s] of ``y`` (14,) in place; ``a0``/``a1`` (6,) and ``est`` (14,) are scratch.
+
+    As :class:`lander_sim.integrators.verlet.VelocityVerlet`: quaternion ``q + q'(omega_half) dt``
+    (eq 14) then renormalised if ``params[P_RENORM]``; Euler angles (``params[P_EULER]``)
+    ``E + J omega dt + E'' dt^2 / 2`` (eq 5, 6) with the full-step rate, never renormalised;
+    with ``params[P_PIVOT]`` the position and velocity are not touched (a fixed pivot).
+    """
     h = 0.5 * dt
     _accelerations(y, params, force, torque, throttles, wind, a0)
     fuel_rate = 0.0
@@ -134,26 +203,47 @@ def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est
     wh1 = w1 + h * a0[3]
     wh2 = w2 + h * a0[4]
     wh3 = w3 + h * a0[5]
-    s, a, b, c = y[6], y[7], y[8], y[9]
-    # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
-    ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
-    da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
-    db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
-    dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
-    s = s + ds * dt
-    a = a + da * dt
-    b = b + db * dt
-    c = c + dc * dt
-    if params[P_RENORM] != 0.0:
-        nq = math.sqrt(s * s + a * a + b * b + c * c)
-        s, a, b, c = s / nq, a / nq, b / nq, c / nq
-    y[6], y[7], y[8], y[9] = s, a, b, c
-    vh0 = y[3] + h * a0[0]
-    vh1 = y[4] + h * a0[1]
-    vh2 = y[5] + h * a0[2]
-    y[0] = y[0] + vh0 * dt
-    y[1] = y[1] + vh1 * dt
-    y[2] = y[2] + vh2 * dt
+    if params[P_EULER] != 0.0:
+        # eq 5 and eq 6 (J' of eq 7) in verlet.py's order: (E + (J w) dt) + (dt^2 / 2) (J' w + J w').
+        floor = params[P_SIN_FLOOR]
+        theta, psi = y[7], y[8]
+        j00, j01, j10, j11, j20, j21 = euler_rates_matrix(theta, psi, floor)
+        e0 = j00 * w1 + j01 * w2 + 0.0 * w3
+        e1 = j10 * w1 + j11 * w2 + 0.0 * w3
+        e2 = j20 * w1 + j21 * w2 + 1.0 * w3
+        d00, d01, d10, d11, d20, d21 = euler_rates_matrix_dot(theta, psi, e1, e2, floor)
+        u0, u1, u2 = a0[3], a0[4], a0[5]
+        dd0 = (d00 * w1 + d01 * w2 + 0.0 * w3) + (j00 * u0 + j01 * u1 + 0.0 * u2)
+        dd1 = (d10 * w1 + d11 * w2 + 0.0 * w3) + (j10 * u0 + j11 * u1 + 0.0 * u2)
+        dd2 = (d20 * w1 + d21 * w2 + 0.0 * w3) + (j20 * u0 + j21 * u1 + 1.0 * u2)
+        c2 = 0.5 * dt * dt
+        y[6] = (y[6] + e0 * dt) + c2 * dd0
+        y[7] = (y[7] + e1 * dt) + c2 * dd1
+        y[8] = (y[8] + e2 * dt) + c2 * dd2
+    else:
+        s, a, b, c = y[6], y[7], y[8], y[9]
+        # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
+        ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
+        da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
+        db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
+        dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
+        s = s + ds * dt
+        a = a + da * dt
+        b = b + db * dt
+        c = c + dc * dt
+        if params[P_RENORM] != 0.0:
+            nq = math.sqrt(s * s + a * a + b * b + c * c)
+            s, a, b, c = s / nq, a / nq, b / nq, c / nq
+        y[6], y[7], y[8], y[9] = s, a, b, c
+    moving = params[P_PIVOT] == 0.0
+    vh0 = vh1 = vh2 = 0.0
+    if moving:
+        vh0 = y[3] + h * a0[0]
+        vh1 = y[4] + h * a0[1]
+        vh2 = y[5] + h * a0[2]
+        y[0] = y[0] + vh0 * dt
+        y[1] = y[1] + vh1 * dt
+        y[2] = y[2] + vh2 * dt
     y[13] += fuel_rate * dt
     if y[13] < 0.0:
         y[13] = 0.0
@@ -162,16 +252,18 @@ def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est
     est[10] = w1 + dt * a0[3]
     est[11] = w2 + dt * a0[4]
     est[12] = w3 + dt * a0[5]
-    est[3] = y[3] + dt * a0[0]
-    est[4] = y[4] + dt * a0[1]
-    est[5] = y[5] + dt * a0[2]
+    if moving:
+        est[3] = y[3] + dt * a0[0]
+        est[4] = y[4] + dt * a0[1]
+        est[5] = y[5] + dt * a0[2]
     _accelerations(est, params, force, torque, throttles, wind, a1)
     y[10] = wh1 + h * a1[3]
     y[11] = wh2 + h * a1[4]
     y[12] = wh3 + h * a1[5]
-    y[3] = vh0 + h * a1[0]
-    y[4] = vh1 + h * a1[1]
-    y[5] = vh2 + h * a1[2]
+    if moving:
+        y[3] = vh0 + h * a1[0]
+        y[4] = vh1 + h * a1[1]
+        y[5] = vh2 + h * a1[2]
 
 
 @njit(cache=True)

@@ -2,13 +2,14 @@
 
 The model is the one of :mod:`lander_sim.fast.lander_kernel` (inverse-square or uniform gravity,
 exponential atmosphere, sphere drag, thrusters, a constant force at a body point: the seed-1
-rotor and pendulum; any subset, also none: the torque-free top) in quaternion
+rotor and pendulum; any subset, also none: the torque-free top) in quaternion or ZXZ Euler-angle
 mode, with or without translation (a fixed pivot), written as the first-order form of
 :func:`lander_sim.integrators.base.derivative`: ``r' = v``, ``v' = a_W``, ``q' = 1/2 q x (0, omega)``
-(eq 14), ``omega' `` from Euler's equations (eq 2), ``fuel' = -sum t_i burn_i``.
+(eq 14) or ``E' = J(E) omega`` (eq 5, ``sin theta`` floored as the numpy path floors it, slot 9
+held at 0), ``omega' `` from Euler's equations (eq 2), ``fuel' = -sum t_i burn_i``.
 
 * :func:`rk4_steps`: ``n`` steps of :class:`lander_sim.integrators.rk4.RK4` (same operation order,
-  quaternion renormalised and fuel clamped after each step).
+  the quaternion (never Euler angles) renormalised and fuel clamped after each step).
 * :func:`dopri5_span`: one call of :class:`lander_sim.integrators.adaptive.AdaptiveDormandPrince`
   in local error control (same tableau, error norm HNW II eq 4.11, controller, last-step stretch,
   FSAL within the call).
@@ -16,6 +17,8 @@ mode, with or without translation (a fixed pivot), written as the first-order fo
   steps it (Hairer, Norsett & Wanner, *Solving ODEs I*, II.5 and II.4: the same tableau, the
   combined 5th/3rd-order error estimate, the initial-step guess and the step-size controller), so
   scipy's DOP853 is its reference.
+* :func:`geometric_steps`: the DLM splitting of :class:`lander_sim.integrators.geometric.Geometric`,
+  quaternion mode only (it moves the attitude by the exponential map; Euler angles have none).
 
 The numpy integrators stay the reference for the first two; tests hold each pair to 1e-12.
 """
@@ -42,13 +45,14 @@ __all__ = ["CompiledModel", "compiled_model", "dop853_span", "dop853_tableau", "
 
 def unsupported_model(dyn: Any) -> str | None:
     """Why ``dyn`` has no compiled form (None if it has one: a
-    :class:`~lander_sim.physics.dynamics.LanderDynamics` of the supported models, quaternions)."""
+    :class:`~lander_sim.physics.dynamics.LanderDynamics` of the supported models, in quaternion
+    or ZXZ Euler-angle attitude)."""
     from lander_sim.physics.dynamics import LanderDynamics
 
     if not isinstance(dyn, LanderDynamics):
         return f"{type(dyn).__name__} is not a LanderDynamics (its equations are its own)"
-    if getattr(dyn, "attitude", None) != "quaternion":
-        return "Euler-angle attitude (compiled methods are quaternion only)"
+    if getattr(dyn, "attitude", None) not in ("quaternion", "euler"):
+        return f"attitude {getattr(dyn, 'attitude', None)!r} (compiled methods know quaternion and euler)"
     names = {m.name: m for m in getattr(dyn, "models", ())}
     unknown = set(names) - {"gravity", "drag", "thrusters", "parachute", "constant_force"}
     if unknown:
@@ -72,8 +76,15 @@ class CompiledModel:
         why = unsupported_model(dyn)
         if why is not None:
             raise ValueError(f"no compiled form of this model: {why}")
+        from lander_sim.physics.rotation import SIN_THETA_FLOOR
+
         p = np.zeros(_k.N_PARAMS)
         names = {m.name: m for m in dyn.models}
+        if dyn.attitude == "euler":
+            p[_k.P_EULER] = 1.0
+            p[_k.P_SIN_FLOOR] = SIN_THETA_FLOOR  # the numpy path's floor, read at packing time
+        if not dyn.translation:
+            p[_k.P_PIVOT] = 1.0
         g = names.get("gravity")
         if g is not None and hasattr(g, "gm"):
             p[_k.P_GRAV], p[_k.P_GM] = 1.0, g.gm
@@ -155,12 +166,18 @@ def derivative(y, P, force, torque, burn, thr, wind, trans, out, acc):  # pragma
     else:
         for j in range(6):
             out[j] = 0.0
-    s, a, b, c = y[6], y[7], y[8], y[9]
-    wx, wy, wz = y[10], y[11], y[12]
-    out[6] = 0.5 * (-a * wx - b * wy - c * wz)
-    out[7] = 0.5 * (s * wx + b * wz - c * wy)
-    out[8] = 0.5 * (s * wy + c * wx - a * wz)
-    out[9] = 0.5 * (s * wz + a * wy - b * wx)
+    if P[_k.P_EULER] != 0.0:
+        # eq 5, E' = J(E) omega (rotation.euler_rates_matrix @ omega); slot 9 is unused in this mode.
+        out[6], out[7], out[8] = _k.euler_rates(y, P[_k.P_SIN_FLOOR])
+        out[9] = 0.0
+    else:
+        # eq 14, q' = 1/2 q x (0, omega) (rotation.quat_dot).
+        s, a, b, c = y[6], y[7], y[8], y[9]
+        wx, wy, wz = y[10], y[11], y[12]
+        out[6] = 0.5 * (-a * wx - b * wy - c * wz)
+        out[7] = 0.5 * (s * wx + b * wz - c * wy)
+        out[8] = 0.5 * (s * wy + c * wx - a * wz)
+        out[9] = 0.5 * (s * wz + a * wy - b * wx)
     out[10], out[11], out[12] = acc[3], acc[4], acc[5]
     rate = 0.0
     if P[_k.P_THRUST] != 0.0 and y[13] > 0.0:
@@ -179,7 +196,8 @@ def _renormalise(y):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def rk4_steps(y, dt, n, P, force, torque, burn, thr, wind, trans, renormalise):  # pragma: no cover - compiled
-    """``n`` classical RK4 steps of ``dt`` [s] of ``y`` in place (as :class:`~lander_sim.integrators.rk4.RK4`)."""
+    """``n`` classical RK4 steps of ``dt`` [s] of ``y`` in place (as :class:`~lander_sim.integrators.rk4.RK4`);
+    ``renormalise`` applies to a quaternion only (Euler angles are not a unit vector)."""
     k = np.empty((4, 14))
     tmp = np.empty(14)
     acc = np.empty(6)
@@ -198,7 +216,7 @@ def rk4_steps(y, dt, n, P, force, torque, burn, thr, wind, trans, renormalise): 
         derivative(tmp, P, force, torque, burn, thr, wind, trans, k[3], acc)
         for j in range(14):
             y[j] += w * (((k[0, j] + 2.0 * k[1, j]) + 2.0 * k[2, j]) + k[3, j])
-        if renormalise:
+        if renormalise and P[_k.P_EULER] == 0.0:
             _renormalise(y)
         if y[13] < 0.0:  # noqa: PLR1730 - as clamp_fuel: a NaN stays NaN (max() would hide it)
             y[13] = 0.0
@@ -524,8 +542,13 @@ _GEOMETRIC = None
 
 def geometric_steps(*args: Any) -> int:
     """``n`` compiled steps of the geometric splitting (built on first use: it compiles
-    :func:`lander_sim.integrators.geometric.free_rotor_step` itself)."""
+    :func:`lander_sim.integrators.geometric.free_rotor_step` itself). Arguments as
+    :func:`rk4_steps`; quaternion mode only: raises ``ValueError`` for Euler-angle parameters."""
     global _GEOMETRIC
+    if args[3][_k.P_EULER] != 0.0:
+        # The DLM drift moves q by exact principal-axis rotations (the exponential map); the ZXZ
+        # angles have no such flow, and reading them as a quaternion would fly garbage silently.
+        raise ValueError("geometric splitting is quaternion-only: its attitude update is the exponential map of q")
     if _GEOMETRIC is None:
         _GEOMETRIC = _make_geometric_steps()
     return _GEOMETRIC(*args)

@@ -12,10 +12,10 @@ name                   order  method
 ``dop853``             8      Dormand-Prince 8(5,3) as scipy's ``solve_ivp``, local error control
 =====================  =====  ==========================================================
 
-RK4, ``adaptive``, ``geometric`` and ``dop853`` step a model that has a compiled form
+``verlet``, RK4, ``adaptive``, ``geometric`` and ``dop853`` step a model that has a compiled form
 (:func:`lander_sim.fast.rk_kernels.compiled_model`: the standard lander models and the seed-1
-rigid bodies, quaternion attitude) in numba; option ``compiled=False`` keeps the numpy code (for
-``dop853``: scipy), the reference they are tested against.
+rigid bodies, quaternion or Euler-angle attitude; ``geometric`` quaternion only) in numba; option
+``compiled=False`` keeps the numpy code (for ``dop853``: scipy), the reference they are tested against.
 
 All advance translation and rotation together, in quaternion or (except ``geometric``)
 ZXZ Euler-angle mode (eq 5-7 of the dynamics reference).

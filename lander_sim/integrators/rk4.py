@@ -19,8 +19,9 @@ class RK4:
     back after each step (seed 1 task 3). Euler-mode scenes use eq 5 for ``E'``.
 
     With ``compiled`` (default) a model that has a compiled form
-    (:func:`lander_sim.fast.rk_kernels.compiled_model`: the standard lander models, quaternions)
-    is stepped by :func:`~lander_sim.fast.rk_kernels.rk4_steps`, the same arithmetic in numba;
+    (:func:`lander_sim.fast.rk_kernels.compiled_model`: the standard lander models, quaternion or
+    Euler-angle attitude) is stepped by :func:`~lander_sim.fast.rk_kernels.rk4_steps`, the same
+    arithmetic in numba;
     ``compiled=False`` keeps this numpy code, the reference (they agree to ~1e-15 relative).
     """
 

@@ -23,9 +23,10 @@ class VelocityVerlet:
        ``v + a dt`` (velocity-dependent forces need one; the skeleton uses the same for omega);
     4. ``v(t+dt) = v(t+dt/2) + a(t+dt) dt/2``.
 
-    Two acceleration evaluations per step; second order. With ``compiled`` (default) a free-flying
-    model with a compiled form is stepped by :func:`lander_sim.fast.lander_kernel.verlet_steps`
-    (the Simulation's fast path); ``compiled=False`` keeps this numpy code, the reference.
+    Two acceleration evaluations per step; second order. With ``compiled`` (default) a model with
+    a compiled form (:func:`lander_sim.fast.rk_kernels.compiled_model`: quaternion or Euler
+    angles, free or on a fixed pivot) is stepped by :func:`lander_sim.fast.lander_kernel.verlet_steps`,
+    the same arithmetic in numba; ``compiled=False`` keeps this numpy code, the reference.
     """
 
     renormalise: bool = True
@@ -39,7 +40,7 @@ class VelocityVerlet:
     def step(self, dyn: Dynamics, t: float, y: np.ndarray, dt: float) -> None:
         if type(dt) is not float or not dt > 0.0:
             dt = check_dt(dt)
-        if self.compiled and dyn.translation and _fast_step(dyn, y, dt, self.renormalise):
+        if self.compiled and _fast_step(dyn, y, dt, self.renormalise):
             return
         a0, a1, est = self._a0, self._a1, self._est
         dyn.accelerations(t, y, a0)

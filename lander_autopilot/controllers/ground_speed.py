@@ -165,7 +165,8 @@ class GroundSpeedController(SumController):
         b1 /= float(np.linalg.norm(b1))
         q_d = matrix_to_quat(np.array([b1, np.cross(b3, b1), b3]))  # rows: body axes in world (world -> body)
         self.tilt_demand = math.acos(min(1.0, float(b3 @ L[2])))
-        inner = Demand(altitude=demand.altitude, attitude=tuple(quat_to_euler(q_d).tolist()))  # type: ignore[arg-type]
+        phi, theta, psi = (float(a) for a in quat_to_euler(q_d))
+        inner = Demand(altitude=demand.altitude, attitude=(phi, theta, psi))
         # Collective: the vertical share of the thrust along the *current* body z.
         z_B_up = float(quat_to_matrix(state.q)[2] @ L[2])
         m = self.vehicle.mass(state.fuel)
@@ -183,4 +184,4 @@ class GroundSpeedController(SumController):
 
     @property
     def collective(self) -> _Collective:
-        return self.altitude  # type: ignore[return-value]
+        return self.altitude  # type: ignore[return-value]  # built as a _Collective in __init__; typed as the base's part

@@ -58,9 +58,9 @@ class GainSchedule:
     def gain(self, mu: Any) -> np.ndarray:
         """``K(mu)``: linear on the triangulation, the nearest point's gain outside its hull."""
         mu = np.asarray(mu, float).reshape(1, -1)
-        k = self._linear(mu)[0]  # type: ignore[attr-defined]
+        k = self._linear(mu)[0]  # type: ignore[attr-defined]  # set in __post_init__ (frozen dataclass)
         if not np.all(np.isfinite(k)):
-            k = self._nearest(mu)[0]  # type: ignore[attr-defined]
+            k = self._nearest(mu)[0]  # type: ignore[attr-defined]  # set in __post_init__ (frozen dataclass)
         return np.asarray(k).reshape(self.gains.shape[1:])
 
 

@@ -169,11 +169,11 @@ def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehic
         # radial speed: turning positive after entry is a skip (another pass, hours later)
         return float(y[:3] @ y[3:])
 
-    ground.terminal = True  # type: ignore[attr-defined]
-    chute_ok.terminal = True  # type: ignore[attr-defined]
-    chute_ok.direction = -1  # type: ignore[attr-defined]
-    climbing.terminal = True  # type: ignore[attr-defined]
-    climbing.direction = 1  # type: ignore[attr-defined]
+    ground.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+    chute_ok.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+    chute_ok.direction = -1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+    climbing.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+    climbing.direction = 1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
 
     # coast to the top of the atmosphere first (two-body, exact to the integrator's tolerance)
     y0 = np.concatenate([position_W, velocity_W])
@@ -182,8 +182,8 @@ def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehic
         def at_top(_t: float, y: np.ndarray) -> float:
             return float(np.linalg.norm(y[:3])) - radius - top
 
-        at_top.terminal = True  # type: ignore[attr-defined]
-        at_top.direction = -1  # type: ignore[attr-defined]
+        at_top.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+        at_top.direction = -1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
         orbit = Orbit.of(position_W, velocity_W, gm)
         period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
         coast = solve_ivp(f, (0, period), y0, rtol=1e-10, atol=1e-6, events=at_top)

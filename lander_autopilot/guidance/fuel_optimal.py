@@ -380,9 +380,9 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
         else:
             a, c = c, d
             d = a + invphi * (b - a)
-    best = min((tf for tf in cache if cache[tf] is not None), key=lambda tf: cache[tf].fuel)  # type: ignore[union-attr]
-    sol = cache[best]
-    assert sol is not None
+    solved = {tf: s for tf, s in cache.items() if s is not None}
+    best = min(solved, key=lambda tf: solved[tf].fuel)
+    sol = solved[best]
     return DescentSolution(**{**sol.__dict__, "solve_count": count})
 
 

@@ -240,6 +240,17 @@ class ThreeThrusterAllocation:
         return u, saturated
 
 
+def _keep_then_fit(kept: float, c_kept: np.ndarray, fitted: float, c_fitted: np.ndarray) -> tuple[float, float]:
+    """The first wish kept (clipped only if the throttles cannot give it at all), then the second
+    clipped into what the first leaves: ``(kept, fitted)``."""
+    lo, hi = _interval(kept * c_kept, c_fitted)
+    if lo > hi:
+        lo, hi = _interval(np.zeros(3), c_kept)
+        kept = min(max(kept, lo), hi)
+        lo, hi = _interval(kept * c_kept, c_fitted)
+    return kept, min(max(fitted, lo), hi)
+
+
 def _interval(t0: np.ndarray, d: np.ndarray, top: np.ndarray | None = None) -> tuple[float, float]:
     """The range of ``s`` with every ``t0 + s d`` in [0, top] (top 1 if not given; empty: lo > hi)."""
     lo, hi = -np.inf, np.inf
@@ -311,19 +322,9 @@ class SpinAllocation:
             if lo <= hi:
                 yaw = min(max(yaw, lo), hi)
         if yaw_first:
-            lo, hi = _interval(yaw * cY, cF)
-            if lo > hi:
-                lo, hi = _interval(np.zeros(3), cY)
-                yaw = min(max(yaw, lo), hi)
-                lo, hi = _interval(yaw * cY, cF)
-            lift = min(max(lift, lo), hi)
+            yaw, lift = _keep_then_fit(yaw, cY, lift, cF)
         else:
-            lo, hi = _interval(lift * cF, cY)
-            if lo > hi:
-                lo, hi = _interval(np.zeros(3), cF)
-                lift = min(max(lift, lo), hi)
-                lo, hi = _interval(lift * cF, cY)
-            yaw = min(max(yaw, lo), hi)
+            lift, yaw = _keep_then_fit(lift, cF, yaw, cY)
         base = lift * cF + yaw * cY
         lo, hi = _interval(base, cP)
         torque_p = min(max(torque_p, lo), hi) if lo <= hi else 0.0

@@ -81,9 +81,15 @@ def parse_end_on(text: str) -> tuple[str, ...]:
     return items
 
 
-def missing(published: dict[str, int], recorded: dict[str, int]) -> dict[str, tuple[int, int]]:
-    """Topics whose recorded count differs from the published one: ``{topic: (published, recorded)}``."""
-    return {t: (n, recorded.get(t, 0)) for t, n in published.items() if recorded.get(t, 0) != n}
+def shortfalls(reference: dict[str, tuple[int, bool]], recorded: dict[str, int]) -> list[str]:
+    """``"TOPIC got of n"`` for each topic (sorted) whose recorded count is below ``n``, or differs
+    from it where the reference is ``exact``: ``reference`` is ``{topic: (n, exact)}``."""
+    out = []
+    for topic, (n, exact) in sorted(reference.items()):
+        got = recorded.get(topic, 0)
+        if got < n or (exact and got != n):
+            out.append(f"{topic} {got} of {n}")
+    return out
 
 
 def format_matched(counts: dict[str, int]) -> str:

@@ -1023,7 +1023,8 @@ def stop_nodes(f: LaunchedFlight) -> None:
             f.executor.spin_once(timeout_sec=0.02)
     _stop_all(f.procs)
     if sup is not None and sup.recorder is not None and f.executor is not None:
-        _drain(sup, f.executor)  # what the nodes flushed before they exited is still queued here
+        # what the nodes flushed before they exited is still queued here
+        sup.recorder.wait_quiet(0.2, 3.0, pause=lambda s: f.executor.spin_once(timeout_sec=s))
 
 
 def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
@@ -1065,11 +1066,9 @@ def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
     if sup.flight_end is None:
         result.bag_check = "not checked: the flight did not reach its end"
         return
-    bad = []
-    for t, (n, exact) in sorted(reference_counts(sup).items()):
-        got = counts.get(t, 0)
-        if got < n or (exact and got != n):
-            bad.append(f"{t} {got} of {n}")
+    from lander_ros.flight_span import shortfalls
+
+    bad = shortfalls(reference_counts(sup), counts)
     if bad:
         result.bag_check = "INCOMPLETE: " + ", ".join(bad) + " published"
         if result.exit_code in (EXIT_OK, EXIT_CRASHED):
@@ -1172,18 +1171,6 @@ def _stop_all(procs: dict[str, NodeProcess]) -> None:
                 pass
     for p in order:
         p.stop(interrupted=p.name in interrupted)
-
-
-def _drain(sup: _Supervisor, executor: Any, quiet: float = 0.2, limit: float = 3.0) -> None:
-    """Spin until no message has arrived for ``quiet`` s (bounded), so queued messages reach the bag."""
-    rec = sup.recorder
-    t_end = time.monotonic() + limit
-    last, t_quiet = -1, time.monotonic() + quiet
-    while time.monotonic() < min(t_end, t_quiet):
-        executor.spin_once(timeout_sec=0.02)
-        total = sum(rec.counts.values())
-        if total != last:
-            last, t_quiet = total, time.monotonic() + quiet
 
 
 class _Interrupted(Exception):

@@ -264,6 +264,22 @@ class Recorder:
         # list() copies in one step under the GIL: the recorder thread may be adding topics.
         return sorted(t for t, s in list(self._subs.items()) if s is not None)
 
+    def wait_quiet(self, quiet: float, limit: float, *, skip: tuple[str, ...] = (),
+                   pause: Callable[[float], Any] = time.sleep) -> None:
+        """Return once no message (written, or dropped while :attr:`held`) has arrived on any topic
+        but ``skip`` for ``quiet`` wall seconds, or after ``limit`` s. ``pause(s)`` passes the time
+        between looks (the launcher spins its executor there)."""
+        def total() -> int:
+            return sum(n for t, n in [*list(self.counts.items()), *list(self.dropped.items())] if t not in skip)
+
+        end = time.monotonic() + limit
+        last, since = total(), time.monotonic()
+        while time.monotonic() < end and time.monotonic() - since < quiet:
+            pause(0.02)
+            now = total()
+            if now != last:
+                last, since = now, time.monotonic()
+
     # --- end ---------------------------------------------------------------------------------
 
     def close(self) -> dict[str, int]:

@@ -102,7 +102,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             on_started: Callable[[], None] | None) -> int:
     from std_srvs.srv import Trigger
 
-    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched
+    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched, shortfalls
     from lander_tools.live.link import AUTOPILOT_NODE, SIM_NODE, FlightLink, NoFlight
     from lander_tools.recorder import Recorder
 
@@ -145,7 +145,8 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             if not paused.ok:
                 raise _Refused(f"the simulator refused to pause: {paused.message}")
             was_running = "(was running)" in paused.message
-            _wait_quiet(rec)
+            # 3. ... nothing but the wall-paced /diagnostics coming in for QUIET s (the recorder drops it all)
+            rec.wait_quiet(QUIET, QUIET_LIMIT, skip=("/diagnostics",))
             # 4. the end instant
             if args.duration is not None:
                 out = link.set_parameters(SIM_NODE, {"end_time": float(args.duration)})
@@ -185,11 +186,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
         if flight_end is None:
             _say("bag not checked: the flight did not reach its end while recording")
             return EXIT_OK
-        short = []
-        for t in sim_topics:
-            n, got = flight_end.counts[t], counts.get(t, 0)
-            if got < n or (got != n and t not in shared):
-                short.append(f"{t} {got} of {n}")
+        short = shortfalls({t: (flight_end.counts[t], t not in shared) for t in sim_topics}, counts)
         if short:
             _say("INCOMPLETE: " + ", ".join(short) + " published")
             return EXIT_INCOMPLETE_BAG
@@ -265,32 +262,13 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
         time.sleep(0.05)
 
 
-def _wait_quiet(rec: Any) -> None:
-    """Step 3: until nothing but /diagnostics has reached the held recorder for :data:`QUIET` s."""
-    def total() -> int:
-        return sum(n for t, n in list(rec.dropped.items()) if t != "/diagnostics")
-
-    deadline = time.monotonic() + QUIET_LIMIT
-    last, since = total(), time.monotonic()
-    while time.monotonic() < deadline and time.monotonic() - since < QUIET:
-        time.sleep(0.02)
-        now = total()
-        if now != last:
-            last, since = now, time.monotonic()
-
-
 def _wait_delivered(rec: Any, published: dict[str, int]) -> None:
     """Step 6: until the recorder holds what the simulator counted (bounded), then a short quiet
     for what others answered to the end state (the autopilot's throttles and status)."""
     deadline = time.monotonic() + DELIVERY_TIMEOUT
     while time.monotonic() < deadline and any(rec.counts.get(t, 0) < n for t, n in published.items()):
         time.sleep(0.02)
-    last, since = sum(rec.counts.values()), time.monotonic()
-    while time.monotonic() - since < QUIET and time.monotonic() < deadline + QUIET:
-        time.sleep(0.02)
-        now = sum(rec.counts.values())
-        if now != last:
-            last, since = now, time.monotonic()
+    rec.wait_quiet(QUIET, max(0.0, deadline - time.monotonic()) + QUIET)
 
 
 def _describe_end(end_time: Any, end_on: Any) -> str:

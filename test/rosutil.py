@@ -278,16 +278,13 @@ def ros_args(params: dict[str, object]) -> list[str]:
 
 
 def start_node(module: str, params: dict[str, object] | None = None, name: str | None = None,
-               env: dict[str, str] | None = None) -> ChildProcess:
-    """``python -m MODULE --ros-args -p ...`` from the repository root (a node under test)."""
-    return ChildProcess(["-m", module, *ros_args(params or {})], env=env, cwd=REPO, name=name or module.rsplit(".", 1)[-1])
-
-
-def stamp_seconds(stamp: Any) -> float:
-    """A ``builtin_interfaces/Time`` as seconds: the nodes' own conversion, so tests compare like with like."""
-    from lander_ros.stamps import stamp_to_seconds
-
-    return stamp_to_seconds(stamp)
+               env: dict[str, str] | None = None, params_file: str | Path | None = None) -> ChildProcess:
+    """``python -m MODULE --ros-args [--params-file F] -p ...`` from the repository root (a node
+    under test); the ``-p`` overrides come after the file, so they win."""
+    args = ros_args(params or {})
+    if params_file is not None:
+        args[1:1] = ["--params-file", str(params_file)]
+    return ChildProcess(["-m", module, *args], env=env, cwd=REPO, name=name or module.rsplit(".", 1)[-1])
 
 
 class Observer:

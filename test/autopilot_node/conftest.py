@@ -5,17 +5,13 @@ localhost-only discovery; the child processes inherit both.
 """
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 
 import pytest
 
 import rosutil
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 @dataclass
@@ -26,13 +22,7 @@ class Rig:
     children: dict[str, rosutil.ChildProcess]
 
     def start(self, module: str, name: str, params: dict[str, object], params_file: str | None = None) -> rosutil.ChildProcess:
-        from .ground import ros_args
-
-        args = ros_args(params)
-        if params_file is not None:  # before the -p overrides, which win
-            args[1:1] = ["--params-file", params_file]
-        env = dict(os.environ)
-        child = rosutil.ChildProcess(["-m", module, *args], env=env, cwd=REPO, name=name)
+        child = rosutil.start_node(module, params, name=name, params_file=params_file)
         self.children[name] = child
         return child
 

@@ -18,14 +18,14 @@ from std_srvs.srv import Trigger
 import rosutil
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import Reset, SwitchController
+from lander_ros.stamps import stamp_to_seconds
 
 #: Generous: discovery and process start-up (imports of rclpy + python-control) on a loaded 2-core machine.
 START_TIMEOUT = 30.0
 #: One request/answer over the middleware.
 REPLY_TIMEOUT = 10.0
 
-ros_args = rosutil.ros_args
-seconds = rosutil.stamp_seconds
+seconds = stamp_to_seconds
 
 
 class Ground(rosutil.Observer):

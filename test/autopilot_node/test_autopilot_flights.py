@@ -30,19 +30,24 @@ ALTITUDE_POLES = (-0.9, -1.1)
 DT_CONTROL = 0.1  # s: the scene's dt, one physics step per published state (publish_rate 10 Hz)
 
 
-@pytest.fixture(scope="module")
-def flight(rig):
-    """Simulator (paused, lockstep, as fast as possible) + autopilot, both discovered by the ground."""
+def start_lockstep_flight(rig, scene: str, controller: str, subscribers: dict[str, int] | None = None):
+    """Simulator (paused, lockstep, as fast as possible, one state per control period) + autopilot,
+    both discovered by the ground (and ``subscribers`` more per topic, e.g. the autopilot's demand inputs)."""
     rig.start("lander_sim.node", "sim", {
-        "scene": SCENE, "lockstep": True, "speed": 0.0, "start_paused": True, "publish_rate": 1.0 / DT_CONTROL,
+        "scene": scene, "lockstep": True, "speed": 0.0, "start_paused": True, "publish_rate": 1.0 / DT_CONTROL,
         # Every state must be answered whatever the machine's load: the timeout is only liveness.
         "lockstep_timeout": 30.0,
     })
-    rig.start("lander_autopilot.node", "autopilot", {"scene": SCENE, "controller": "combined"})
-    wait_for_graph(rig.ground, subscribers={"/lander/state": 2, "/lander/throttle": 2},
+    rig.start("lander_autopilot.node", "autopilot", {"scene": scene, "controller": controller})
+    wait_for_graph(rig.ground, subscribers={"/lander/state": 2, "/lander/throttle": 2, **(subscribers or {})},
                    publishers={"/lander/throttle": 1, "/lander/state": 1})
     rig.ground.wait_for(rig.ground.switch.service_is_ready, START_TIMEOUT, "autopilot's switch service")
     return rig
+
+
+@pytest.fixture(scope="module")
+def flight(rig):
+    return start_lockstep_flight(rig, SCENE, "combined")
 
 
 @dataclass

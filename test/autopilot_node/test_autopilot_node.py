@@ -25,8 +25,8 @@ from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.ros.convert import fill_state
 from lander_sim.scenes import load_scene
+from rosutil import REPO
 
-from .conftest import REPO
 from .ground import START_TIMEOUT
 
 PARAMS_FILE = REPO / "config" / "autopilot.yaml"

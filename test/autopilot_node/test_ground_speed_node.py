@@ -16,25 +16,16 @@ from lander_autopilot.ros.convert import state_view
 from lander_interfaces.msg import FlightEvent
 from lander_sim.scenes import load_scene
 
-from .ground import START_TIMEOUT, seconds, wait_for_graph
-from .test_autopilot_flights import answers, fly_until, start_flight
+from .ground import seconds
+from .test_autopilot_flights import answers, fly_until, start_flight, start_lockstep_flight
 
 SCENE = "ground-speed"
-DT_CONTROL = 0.1  # s
 
 
 @pytest.fixture(scope="module")
 def flight(rig):
-    rig.start("lander_sim.node", "sim", {
-        "scene": SCENE, "lockstep": True, "speed": 0.0, "start_paused": True, "publish_rate": 1.0 / DT_CONTROL,
-        "lockstep_timeout": 30.0,
-    })
-    rig.start("lander_autopilot.node", "autopilot", {"scene": SCENE, "controller": "ground-speed"})
     rig.ground.pub_velocity = rig.ground.node.create_publisher(Vector3Stamped, "/lander/demand_velocity", 10)
-    wait_for_graph(rig.ground, subscribers={"/lander/state": 2, "/lander/throttle": 2, "/lander/demand_velocity": 1},
-                   publishers={"/lander/throttle": 1, "/lander/state": 1})
-    rig.ground.wait_for(rig.ground.switch.service_is_ready, START_TIMEOUT, "autopilot's switch service")
-    return rig
+    return start_lockstep_flight(rig, SCENE, "ground-speed", subscribers={"/lander/demand_velocity": 1})
 
 
 def velocity_msg(x: float, y: float, z: float = 0.0, frame: str = LOCAL_FRAME) -> Vector3Stamped:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import rosutil
+from lander_ros.stamps import stamp_to_seconds
 
 REPO = Path(__file__).resolve().parents[2]
 #: Process start-up and discovery on a loaded 2-core machine (rclpy + python-control imports).
@@ -23,8 +24,7 @@ START_TIMEOUT = 45.0
 REPLY_TIMEOUT = 15.0
 
 
-ros_args = rosutil.ros_args
-stamp_s = rosutil.stamp_seconds
+stamp_s = stamp_to_seconds
 
 
 class Stack:
@@ -34,22 +34,22 @@ class Stack:
         self.children: dict[str, rosutil.ChildProcess] = {}
         self.env = dict(os.environ)
 
-    def start(self, name: str, args: list[str]) -> rosutil.ChildProcess:
+    def _keep(self, name: str, child: rosutil.ChildProcess) -> rosutil.ChildProcess:
         old = self.children.get(name)
         if old is not None:
             old.close()
-        child = rosutil.ChildProcess(args, env=self.env, cwd=REPO, name=name)
         self.children[name] = child
         return child
 
     def sim(self, **params: object) -> rosutil.ChildProcess:
-        return self.start("sim", ["-m", "lander_sim.node", *rosutil.ros_args(params)])
+        return self._keep("sim", rosutil.start_node("lander_sim.node", params, name="sim", env=self.env))
 
     def autopilot(self, **params: object) -> rosutil.ChildProcess:
-        return self.start("autopilot", ["-m", "lander_autopilot.node", *rosutil.ros_args(params)])
+        return self._keep("autopilot", rosutil.start_node("lander_autopilot.node", params, name="autopilot", env=self.env))
 
     def recorder(self, bag: Path, topics: tuple[str, ...]) -> rosutil.ChildProcess:
-        return self.start("recorder", ["-m", "lander_tools.recorder", "-o", str(bag), *topics])
+        return self._keep("recorder", rosutil.ChildProcess(["-m", "lander_tools.recorder", "-o", str(bag), *topics],
+                                                          env=self.env, cwd=REPO, name="recorder"))
 
     def kill(self, name: str) -> None:
         """SIGKILL: no clean-up of any kind in the victim (a crash)."""

@@ -52,6 +52,7 @@ from typing import ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 from lander_sim.physics.rotation import matrix_to_quat, quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
@@ -121,7 +122,7 @@ class DescentToAltitude(LandingController):
         r = c.MARS_RADIUS + h
         g = c.GM_MARS / (r * r)
         a_b = self.braking_acceleration(self._mass, g)
-        cd = self.drag_k * c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT) / self._mass
+        cd = self.drag_k * MARS_ATMOSPHERE.density(h) / self._mass
         h_c = max(h - self.floor - self.half_size, 0.0)
         v_x, h_x = self.flare_entry(a_b)
         if h_c <= h_x:
@@ -307,8 +308,7 @@ class DeorbitController(Controller):
         g = c.GM_MARS / (r * r)
         mass = self.vehicle.mass(state.fuel)
         speed2 = float(state.v_W @ state.v_W)
-        rho = c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
-        drag = self._drag_k * rho * speed2
+        drag = self._drag_k * MARS_ATMOSPHERE.density(h) * speed2
         return drag / mass - g > d.braking_acceleration(mass, g)
 
     def _entry_command(self, t: float, state: StateView) -> np.ndarray:

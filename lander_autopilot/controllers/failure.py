@@ -42,6 +42,7 @@ import math
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
@@ -153,18 +154,11 @@ class ChuteTorqueModel:
         #: Estimated wind, world frame [m/s].
         self.wind_W = np.zeros(3)
 
-    @staticmethod
-    def density(h: float) -> float:
-        """Air density [kg/m^3] at altitude ``h`` [m] (the scenes' exponential atmosphere)."""
-        if h >= c.EXOSPHERE_ALTITUDE:
-            return 0.0
-        return c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
-
     def _air(self, state: StateView) -> tuple[np.ndarray, np.ndarray, float]:
         R = quat_to_matrix(state.q)  # world -> body
         W = R @ (self.wind_W - state.v_W) - np.cross(state.omega_B, self.attach_B)
         h = float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
-        return R, W, self.k * self.density(h) * float(np.linalg.norm(W))
+        return R, W, self.k * MARS_ATMOSPHERE.density(h) * float(np.linalg.norm(W))
 
     def torque(self, state: StateView) -> np.ndarray:
         """The canopy's torque at ``state`` with the estimated wind, body frame [N m]."""

@@ -59,6 +59,7 @@ from typing import ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
@@ -246,8 +247,7 @@ class LandingController(GroundSpeedController):
             return None
         if hd > -1.0 or h - self.half_size < self.chute_min_altitude or h >= c.EXOSPHERE_ALTITUDE:
             return None
-        rho = c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
-        drag = self._chute_k * rho * speed * speed
+        drag = self._chute_k * MARS_ATMOSPHERE.density(h) * speed * speed
         if drag > self.chute_margin * c.PARACHUTE_MAX_DRAG or speed > self.chute_margin * c.PARACHUTE_MAX_SPEED:
             return None
         self._chute_requested = True

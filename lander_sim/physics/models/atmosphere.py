@@ -34,6 +34,10 @@ class Atmosphere:
         return self.surface_density * math.exp(-altitude / self.scale_height)
 
 
+#: The original program's atmosphere (every shipped scene's default): what the controllers model.
+MARS_ATMOSPHERE = Atmosphere()
+
+
 def parse(rd: Reader, node: object, path: str) -> Atmosphere:
     """Scene section ``models.atmosphere`` (the fields of :class:`Atmosphere`, each > 0)."""
     a = rd.mapping(node, path, {"surface_density", "scale_height", "exosphere"})

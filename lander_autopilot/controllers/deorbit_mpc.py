@@ -83,14 +83,14 @@ class DeorbitMpcController(DeorbitController):
     spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference);
     ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
     the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so the reference flown at
-    95 % thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
+    97 % thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
     """
 
     name: ClassVar[str] = "deorbit-mpc"
 
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, mpc_step: float = 0.5, max_tilt: float = 0.7,
                  glide_slope: float = 0.0, reference_steps: int = 20, slew_time: float = 60.0,
-                 burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 1.0,
+                 burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
                  predict_every: float = 1.0, brake_fraction: float = 0.5, attitude_poles: object = (-1.0,) * 6,
                  design_fuel: float | None = None) -> None:

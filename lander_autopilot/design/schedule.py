@@ -86,6 +86,40 @@ def schedule_vertical(thrust_vertical: float, masses: Any, dampings: Any,
     return GainSchedule(np.array(points), np.array(gains), ("mass [kg]", "drag damping [1/s]"), tuple(poles))
 
 
+def descent_rate_model(mass: float, damping: float, thrust_vertical: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` of the descent-rate error about a steady descent: ``A = [[-d]]``, ``B = [[T_v / m]]``.
+
+    The velocity loop of the de-orbit law's braking curve (:class:`..controllers.deorbit.DescentToAltitude`)
+    tracks a descent rate given as a function of altitude; its error obeys the second row of
+    :func:`vertical_descent_model` alone.
+    """
+    A, B = vertical_descent_model(mass, damping, thrust_vertical)
+    return A[1:, 1:], B[1:]
+
+
+def schedule_descent_rate(thrust_vertical: float, masses: Any, dampings: Any, pole: float = -2.0) -> GainSchedule:
+    """The descent-rate gain [throttle per m/s] placing ``pole`` at every ``(mass, damping)`` of the grid.
+
+    Closed loop ``-d - (T_v / m) K = pole``: ``K = (-pole - d) m / T_v``. Where the air already
+    damps (``d`` large, under the chute near the ground) the gain asks less; as the mass falls the
+    same throttle gives more acceleration, so the gain falls with it. Linear in ``m`` and ``d``
+    separately but not jointly, so the interpolated gain differs from the exact one by a second-order
+    term in the grid step (``test_schedule.py`` measures it).
+    """
+    ms, ds = np.asarray(masses, float).ravel(), np.asarray(dampings, float).ravel()
+    if len(ms) < 2 or len(ds) < 2:
+        raise DesignError("schedule: need at least two masses and two dampings (a grid to interpolate on)")
+    if not pole < 0:
+        raise DesignError(f"schedule: the descent-rate pole must be negative (stable), got {pole}")
+    points, gains = [], []
+    for m in ms:
+        for d in ds:
+            A, B = descent_rate_model(m, d, thrust_vertical)
+            points.append((m, d))
+            gains.append(place_poles(A, B, [pole]).K)
+    return GainSchedule(np.array(points), np.array(gains), ("mass [kg]", "drag damping [1/s]"), (pole,))
+
+
 def to_iosystem(schedule: GainSchedule, n_states: int) -> Any:
     """python-control's gain-scheduled state feedback of the same schedule.
 

@@ -24,6 +24,8 @@ import numpy as np
 from lander_sim.physics import constants as c
 from lander_sim.physics.models.atmosphere import Atmosphere
 
+from .entry_flight import NO_ENTRY, SKIPPED, entry_flight
+
 
 @dataclass(frozen=True)
 class EntryVehicle:
@@ -131,79 +133,31 @@ def _propagate(position_W: np.ndarray, velocity_W: np.ndarray, t: float, gm: flo
 
 def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
               gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS,
-              atmosphere: Atmosphere | None = None) -> EntryCheck:
+              atmosphere: Atmosphere | None = None, step_scale: float = 1.0) -> EntryCheck:
     """Fly a point mass (gravity + the body's drag, no thrust, chute packed) from just after the burn.
 
     Stops at the first instant the parachute could open within its limits (speed below its maximum
     and its drag below its limit at that speed and density), on the surface, or when the lander
     starts climbing after entering the atmosphere (a skip: not captured in this pass; with this
     dense exponential atmosphere a high periapsis still comes down, but an orbit or more later).
+    Coasts to the top of the atmosphere for at most one orbital period, then flies at most 7200 s.
+    The integration is :func:`.entry_flight.entry_flight` (compiled RK4, its step scaled by
+    ``step_scale``; the module docstring says how the step and the events are chosen).
     """
-    from scipy.integrate import solve_ivp
-
-    kd = 0.5 * vehicle.drag_cd * vehicle.drag_area / mass
-    kc = 0.5 * vehicle.chute_cd * vehicle.chute_area
-
     atmosphere = atmosphere or Atmosphere()
-    rho, top = atmosphere.density, atmosphere.exosphere
-
-    def f(_t: float, y: np.ndarray) -> np.ndarray:
-        r_vec, v_vec = y[:3], y[3:]
-        r = math.sqrt(float(r_vec @ r_vec))
-        vmag = math.sqrt(float(v_vec @ v_vec))
-        a = -gm * r_vec / r**3 - kd * rho(r - radius) * vmag * v_vec
-        return np.concatenate([v_vec, a])
-
-    def ground(_t: float, y: np.ndarray) -> float:
-        return float(np.linalg.norm(y[:3])) - radius
-
-    def chute_ok(_t: float, y: np.ndarray) -> float:
-        h = float(np.linalg.norm(y[:3])) - radius
-        v = float(np.linalg.norm(y[3:]))
-        if h > top:
-            return 1.0
-        # positive while the chute may not open yet
-        return max(v - vehicle.chute_max_speed, kc * rho(h) * v * v - vehicle.chute_max_drag)
-
-    def climbing(_t: float, y: np.ndarray) -> float:
-        # radial speed: turning positive after entry is a skip (another pass, hours later)
-        return float(y[:3] @ y[3:])
-
-    ground.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-    chute_ok.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-    chute_ok.direction = -1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-    climbing.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-    climbing.direction = 1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-
-    # coast to the top of the atmosphere first (two-body, exact to the integrator's tolerance)
-    y0 = np.concatenate([position_W, velocity_W])
     r0 = float(np.linalg.norm(position_W))
-    if r0 - radius > top:
-        def at_top(_t: float, y: np.ndarray) -> float:
-            return float(np.linalg.norm(y[:3])) - radius - top
-
-        at_top.terminal = True  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
-        at_top.direction = -1  # type: ignore[attr-defined]  # scipy solve_ivp reads event attributes
+    period = 0.0
+    if r0 - radius > atmosphere.exosphere:
         orbit = Orbit.of(position_W, velocity_W, gm)
         period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
-        coast = solve_ivp(f, (0, period), y0, rtol=1e-10, atol=1e-6, events=at_top)
-        if not coast.t_events[0].size:
-            return EntryCheck(False, math.nan, math.nan, 0.0, math.nan, math.nan)
-        y0 = coast.y_events[0][0]
-    r_vec, v_vec = y0[:3], y0[3:]
-    v_entry = float(np.linalg.norm(v_vec))
-    gamma = -math.asin(float(r_vec @ v_vec) / (np.linalg.norm(r_vec) * v_entry))
-    sol = solve_ivp(f, (0, 7200.0), y0, rtol=1e-9, atol=1e-6, max_step=5.0,
-                    events=[ground, chute_ok, climbing], dense_output=False)
-    hs = np.linalg.norm(sol.y[:3], axis=0) - radius
-    vs = np.linalg.norm(sol.y[3:], axis=0)
-    decel = np.array([kd * rho(h) * v * v for h, v in zip(hs, vs, strict=True)])
-    captured = not sol.t_events[2].size
-    if sol.t_events[1].size:
-        yc = sol.y_events[1][0]
-        return EntryCheck(captured, float(np.linalg.norm(yc[3:])), float(np.linalg.norm(yc[:3]) - radius),
-                          float(decel.max()), v_entry, gamma)
-    return EntryCheck(captured, math.nan, math.nan, float(decel.max()), v_entry, gamma)
+    (x, y, z), (vx, vy, vz) = (float(a) for a in position_W), (float(a) for a in velocity_W)
+    outcome, v_chute, h_chute, peak, v_entry, gamma, _t, _h = entry_flight(
+        x, y, z, vx, vy, vz, gm, radius, 0.5 * vehicle.drag_cd * vehicle.drag_area / mass,
+        0.5 * vehicle.chute_cd * vehicle.chute_area, atmosphere.surface_density, atmosphere.scale_height,
+        atmosphere.exosphere, vehicle.chute_max_speed, vehicle.chute_max_drag, period, 7200.0, step_scale)
+    if outcome == NO_ENTRY:
+        return EntryCheck(False, math.nan, math.nan, 0.0, math.nan, math.nan)
+    return EntryCheck(outcome != SKIPPED, v_chute, h_chute, peak, v_entry, gamma)
 
 
 def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,

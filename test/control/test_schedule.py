@@ -61,3 +61,36 @@ def test_same_gain_as_python_controls_gain_scheduled_state_feedback():
         inputs = np.r_[np.zeros(n), 0.0, e, mu]  # x_d = 0, u_d = 0, x = (e, mu)
         u_pc = np.asarray(ctrl.output(0.0, [], inputs)).ravel()
         np.testing.assert_allclose(u_pc, -s.gain(mu) @ e, rtol=1e-12, atol=1e-12)
+
+
+def test_descent_rate_schedule_flown_by_the_deorbit_law():
+    """The velocity loop of the de-orbit law's braking curve: exact pole at the grid points, the
+    interpolation's miss second order (the exact gain (-p - d) m / T_v has an m*d term), and the
+    law reads it (``DescentToAltitude.rate_gain`` in acceleration units, T_v K / m = -p - d)."""
+    from lander_autopilot.controllers.deorbit import DeorbitController
+    from lander_autopilot.design.schedule import descent_rate_model, schedule_descent_rate
+    from lander_sim.scenes import load_scene
+
+    pole = -2.0
+    s = schedule_descent_rate(T_V, np.linspace(100, 200, 3), np.linspace(0.0, 1.0, 3), pole)
+    for m, d in s.points:
+        A, B = descent_rate_model(m, d, T_V)
+        assert abs(float((A - B @ s.gain((m, d)))[0, 0]) - pole) < 1e-9
+
+    def miss(sched, m, d):
+        A, B = descent_rate_model(m, d, T_V)
+        return abs(float((A - B @ sched.gain((m, d)))[0, 0]) - pole)
+
+    grids = [(np.linspace(100, 200, k), np.linspace(0.0, 1.0, k)) for k in (3, 5)]
+    coarse, fine = (schedule_descent_rate(T_V, ms, ds, pole) for ms, ds in grids)
+    e_coarse = max(miss(coarse, m, d) for m, d in _centres(*grids[0]))
+    e_fine = max(miss(fine, m, d) for m, d in _centres(*grids[1]))
+    assert 0 < e_fine < e_coarse / 3
+
+    sc = load_scene("deorbit")
+    law = DeorbitController(sc.vehicle, descent_pole=pole).descent
+    for mass, d in ((sc.vehicle.dry_mass + 60.0, 0.0), (sc.vehicle.dry_mass + 20.0, 0.3)):
+        law._mass = mass
+        # the law's grid is the fine one (5 x 5 over dry..full mass = 100..200 kg, 0..1 /s); its miss
+        # in acceleration units, (T_v / m) dK, does not depend on T_v, and is largest at cell centres
+        assert abs(law.rate_gain(d) - (-pole - d)) <= e_fine * (1 + 1e-9)

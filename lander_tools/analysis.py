@@ -83,6 +83,7 @@ class Flight:
     status_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
     status_saturated: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     meta: dict[str, str] = field(default_factory=dict)
+    parachute: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  #: (N,) chute out
 
     @classmethod
     def from_bag(cls, bag: Bag, name: str | None = None) -> Flight:
@@ -118,6 +119,7 @@ class Flight:
             gimbal_lock=s["gimbal_lock"].astype(bool),
             sequence=s["sequence"].astype(np.int64),
             meta=dict(bag.meta),
+            parachute=s.get("parachute_deployed", np.zeros(len(s["t"]))).astype(bool),
         )
         for m in bag.messages("/lander/events"):
             f.events.append((stamp_to_seconds(m.header.stamp), int(m.kind), m.detail, list(m.values)))
@@ -386,8 +388,9 @@ def differences(all_metrics: list[Metrics]) -> dict[str, dict[str, float]]:
     return out
 
 
-def to_json(all_metrics: list[Metrics]) -> str:
-    """JSON for scripts: ``{"flights": [...], "differences": {...}}``; NaN written as null."""
+def to_json(all_metrics: list[Metrics], extra: dict[str, Any] | None = None) -> str:
+    """JSON for scripts: ``{"flights": [...], "differences": {...}}`` plus the keys of ``extra``
+    (``lander analyse --reference`` adds ``"reference"``); NaN written as null."""
 
     def clean(x: Any) -> Any:
         if isinstance(x, float) and not math.isfinite(x):
@@ -399,6 +402,8 @@ def to_json(all_metrics: list[Metrics]) -> str:
     doc = {"flights": [clean(m.as_dict()) for m in all_metrics]}
     if len(all_metrics) > 1:
         doc["differences"] = clean(differences(all_metrics))
+    for key, value in (extra or {}).items():
+        doc[key] = [clean(v) for v in value] if isinstance(value, list) else clean(value)
     return json.dumps(doc, indent=2)
 
 

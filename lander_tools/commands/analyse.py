@@ -4,7 +4,15 @@ One bag: a metrics table (or ``--json``) and, with ``--out``, the standard plots
 Two or more: the same side by side, metric differences against the first bag and
 overlaid plots. A damaged bag is read as far as it goes, with a warning; an
 unreadable one is a one-line error (exit 2), never a traceback.
-Heavy imports (numpy, matplotlib, rosbags) happen in :func:`run`.
+
+``--reference``: for each de-orbit flight, the powered descent against the fuel-optimal reference
+from its handover state (:mod:`lander_tools.reference_overlay`): printed after the table (or as
+``"reference"`` in the JSON, one entry per bag) and, with ``--out``, plotted to
+``<prefix>-reference.png`` (``<prefix>-reference-<n>.png`` for the n-th of several bags). A bag
+without a powered descent gets one line on stderr and ``null``, exit 0, as a metric that does not
+apply; a reference that cannot be built (no scene in the bag's metadata and no ``--scene``, no
+demand, no feasible descent) is a one-line error, exit 2.
+Heavy imports (numpy, matplotlib, rosbags, cvxpy) happen in :func:`run`.
 """
 
 import argparse
@@ -19,6 +27,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--prefix", default="flight", help="file name prefix of the plots (default: flight)")
     parser.add_argument("--band", type=float, default=0.5, metavar="M",
                         help="smallest settling band, m (default 0.5; else 2%% of the step)")
+    parser.add_argument("--reference", action="store_true",
+                        help="de-orbit flights (controllers deorbit, deorbit-mpc): the powered descent's fuel against "
+                        "the fuel-optimal descent from its handover state to the hover, and with --out its plot "
+                        "(PREFIX-reference.png); solves a convex programme, ~5-15 s per bag")
+    parser.add_argument("--scene", metavar="NAME",
+                        help="with --reference: the flight's scene (name or YAML path) for a bag whose metadata "
+                        "names none, e.g. an MCAP cut short (no metadata.yaml)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -28,6 +43,9 @@ def run(args: argparse.Namespace) -> int:
     from lander_tools.analysis import Flight, metrics, table, to_json, write_plots
     from lander_tools.bagio import BagError, BagWarning, read_bag
 
+    if args.scene is not None and not args.reference:
+        print("lander analyse: --scene is used only with --reference", file=sys.stderr)
+        return 2
     flights = []
     for path in args.bags:
         with warnings.catch_warnings(record=True) as caught:
@@ -42,11 +60,47 @@ def run(args: argparse.Namespace) -> int:
         for w in caught:
             print(f"lander analyse: warning: {w.message}", file=sys.stderr)
     all_metrics = [metrics(f, band_min=args.band) for f in flights]
-    print(to_json(all_metrics) if args.json else table(all_metrics))
+    rc, overlays = (_references(flights, args.bags, args.scene) if args.reference else (0, []))
+    extra = {"reference": [None if o is None else o.summary() for o in overlays]} if args.reference else None
+    print(to_json(all_metrics, extra) if args.json else table(all_metrics))
+    if not args.json:
+        for o in overlays:
+            if o is not None:
+                print()
+                print("\n".join(o.lines()))
     if args.out is not None:
         for p in write_plots(flights, args.out, args.prefix):
             print(f"wrote {p}", file=sys.stderr)
-    return 0
+        from lander_tools.reference_overlay import write_figure
+
+        for k, (f, o) in enumerate(zip(flights, overlays)):
+            if o is not None:
+                name = f"{args.prefix}-reference.png" if len(flights) == 1 else f"{args.prefix}-reference-{k + 1}.png"
+                print(f"wrote {write_figure(f, o, args.out / name)}", file=sys.stderr)
+    return rc
+
+
+def _references(flights: list, paths: list[Path], scene: str | None) -> tuple[int, list]:
+    """Each flight's :class:`~lander_tools.reference_overlay.Overlay` (None where it does not
+    apply or cannot be built: one line on stderr each); exit 2 if any could not be built."""
+    import sys
+
+    from lander_tools import reference_overlay as ro
+
+    rc, out = 0, []
+    for f, path in zip(flights, paths):
+        try:
+            setup = ro.prepare(f, scene)  # quick: what does not apply or cannot be built is told at once
+            print(f"lander analyse: {path}: solving the fuel-optimal reference (~5-15 s)", file=sys.stderr)
+            out.append(ro.solve_reference(setup))
+        except ro.NotApplicable as exc:
+            print(f"lander analyse: {path}: no fuel-optimal reference: {exc}", file=sys.stderr)
+            out.append(None)
+        except ro.OverlayError as exc:
+            print(f"lander analyse: {path}: {exc}", file=sys.stderr)
+            out.append(None)
+            rc = 2
+    return rc, out
 
 
 def _name(path: Path, taken: list[str]) -> str:

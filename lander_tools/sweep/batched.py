@@ -79,6 +79,8 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
         return f"scene {scene.name!r}: {why}"
     if scene.stabiliser:
         return f"scene {scene.name!r} has the stabiliser on (the compiled loop has none)"
+    if spec.end.hover_hold > 0:
+        return "end.hover_hold: the compiled loop has no hover-hold stop"
     for ci, choice in enumerate(spec.controllers):
         if compiled_form(_controller(spec, ci, scene.vehicle)) is None:
             return f"controller {choice.label!r} has no compiled form"
@@ -122,7 +124,8 @@ _PLAIN_VEHICLE_KEYS = {"preset", "thrusters", "disabled", "size"}
 #: set up by building its scene and Simulation until :meth:`_Template.values` learns them.
 _KNOWN_CASE_FIELDS = {"index", "seed", "tilt", "tilt_azimuth", "body_rate_B", "altitude_offset", "velocity_W",
                       "wind_mean_W", "wind_gust", "demand_step", "mass_error", "inertia_error", "thrust_error",
-                      "failed_thruster", "failure_time"}
+                      "failed_thruster", "failure_time", "orbit_altitude", "orbit_phase", "density_error",
+                      "thruster_cant", "thruster_cant_azimuth"}
 
 
 class _Template:
@@ -169,7 +172,9 @@ class _Template:
         th = v.thrusters
         self.max_thrust = [t.max_thrust for t in th]
         # Thrusters.__post_init__'s operands: -d_i, enabled mask, positions.
-        self.neg_d = np.array([-np.asarray(t.direction_B, float) for t in th]).reshape(-1, 3)
+        self.directions = [t.direction_B for t in th]
+        self.neg_d = np.array([-np.asarray(d, float) for d in self.directions]).reshape(-1, 3)
+        self.density = None if scene.models.get("atmosphere") is None else scene.models.get("atmosphere").surface_density
         self.on = np.array([1.0 if t.enabled else 0.0 for t in th]).reshape(-1, 1)
         self.pos = np.array([np.asarray(t.position_B, float) for t in th]).reshape(-1, 3)
         self.stop = sim.ground.contact_radius if sim.ground is not None else 0.0
@@ -194,7 +199,12 @@ class _Template:
         from lander_sim.physics import rotation
         from lander_sim.physics.state import ATT
         from lander_sim.physics.wind import GustConfig, GustProcess
-        from lander_tools.sweep.case_scene import dispersed_initial_state, gust_seed
+        from lander_tools.sweep.case_scene import (
+            NotRepresentable,
+            canted_directions,
+            dispersed_initial_state,
+            gust_seed,
+        )
 
         # Initial state: case_scene_data writes it out, the loader re-normalises the quaternion.
         y = dispersed_initial_state(self.scene, case)
@@ -205,11 +215,19 @@ class _Template:
         p = self.params.copy()
         p[lk.P_DRY] = self.dry * mass_s
         p[lk.P_K1], p[lk.P_K2], p[lk.P_K3] = (k * inertia_s for k in self.k2)
+        if case.density_error:  # case_scene_data: rho0 (1 + e)
+            if self.density is None:
+                raise NotRepresentable(f"dispersions.density_error: scene {self.scene.name!r} has no atmosphere")
+            p[lk.P_RHO0] = float(self.density * (1.0 + case.density_error))
         if any(case.thrust_error):
             tmax = np.array([t * (1.0 + e) for t, e in zip(self.max_thrust, case.thrust_error)])
         else:
             tmax = np.array(self.max_thrust, dtype=float)
-        force = self.neg_d * tmax.reshape(-1, 1) * self.on  # Thrusters: -d_i T_max, times enabled
+        neg_d = self.neg_d
+        if case.thruster_cant:  # flown_scene: the directions tilted, then Thrusters' -d_i
+            dirs = canted_directions(self.directions, case.thruster_cant, case.thruster_cant_azimuth)
+            neg_d = np.array([-np.asarray(d, float) for d in dirs]).reshape(-1, 3)
+        force = neg_d * tmax.reshape(-1, 1) * self.on  # Thrusters: -d_i T_max, times enabled
         torque = np.cross(self.pos, force).reshape(-1, 3)
         out: dict[str, Any] = {
             "y0": y, "kparams": p, "force": force, "torque": torque, "burn": self.burn,

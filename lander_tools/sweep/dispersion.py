@@ -60,6 +60,17 @@ class FlightCase:
         Index of the thruster that fails, or -1 for none.
     failure_time : float
         When it fails [s] (NaN for none).
+    orbit_altitude : float
+        Change of the initial orbit's radius [m] (:func:`~.case_scene.dispersed_initial_state`).
+    orbit_phase : float
+        Rotation of the initial position and velocity about the orbit normal ``r x v`` [rad].
+    density_error : float
+        Relative error of the flown atmosphere's surface density.
+    thruster_cant : tuple of float
+        Tilt of each thruster's direction [rad] ...
+    thruster_cant_azimuth : tuple of float
+        ... about the axis perpendicular to it at this azimuth [rad]
+        (:func:`~.case_scene.canted_directions`); empty when the dispersion is off.
     """
 
     index: int
@@ -77,6 +88,11 @@ class FlightCase:
     thrust_error: tuple[float, ...] = ()
     failed_thruster: int = -1
     failure_time: float = math.nan
+    orbit_altitude: float = 0.0
+    orbit_phase: float = 0.0
+    density_error: float = 0.0
+    thruster_cant: tuple[float, ...] = ()
+    thruster_cant_azimuth: tuple[float, ...] = ()
 
     def parameters(self) -> dict[str, float]:
         """Scalar summary of the case for tables and scatter plots (vectors as magnitudes)."""
@@ -93,6 +109,10 @@ class FlightCase:
             "thrust_error_max": max((abs(e) for e in self.thrust_error), default=0.0),
             "failed_thruster": float(self.failed_thruster),
             "failure_time": self.failure_time,
+            "orbit_altitude": self.orbit_altitude,
+            "orbit_phase": self.orbit_phase,
+            "density_error": self.density_error,
+            "thruster_cant_max": max((abs(a) for a in self.thruster_cant), default=0.0),
         }
 
     def to_dict(self) -> dict[str, object]:
@@ -128,6 +148,12 @@ def draw_case(spec: SweepSpec, index: int, n_thrusters: int) -> FlightCase:
         when = max(0.0, float(d.thruster_failure.time.sample(rng)))
         if u < d.thruster_failure.probability:
             failed, t_fail = which, when
+    cant: tuple[float, ...] = ()
+    cant_azimuth: tuple[float, ...] = ()
+    if d.thruster_cant_error is not None and n_thrusters > 0:
+        cant = tuple(float(a) for a in _draw(spec, index, "thruster_cant_error", d.thruster_cant_error, n_thrusters))
+        azimuth_rng = stream(spec.seed, index, "thruster_cant_azimuth")
+        cant_azimuth = tuple(float(a) for a in azimuth_rng.uniform(0.0, 2.0 * math.pi, n_thrusters))
     return FlightCase(
         index=index,
         seed=spec.seed,
@@ -144,6 +170,11 @@ def draw_case(spec: SweepSpec, index: int, n_thrusters: int) -> FlightCase:
         thrust_error=tuple(float(e) for e in thrust),
         failed_thruster=failed,
         failure_time=t_fail,
+        orbit_altitude=float(_draw(spec, index, "orbit_altitude", d.orbit_altitude)),
+        orbit_phase=float(_draw(spec, index, "orbit_phase", d.orbit_phase)),
+        density_error=max(float(_draw(spec, index, "density_error", d.density_error)), _MIN_RELATIVE),
+        thruster_cant=cant,
+        thruster_cant_azimuth=cant_azimuth,
     )
 
 

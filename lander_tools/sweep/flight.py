@@ -11,10 +11,17 @@ flight's :class:`~lander_tools.sweep.dispersion.FlightCase`, itself a function o
 The controller is built on the **nominal** vehicle (what the designer believes) while the
 simulation flies the **dispersed** one (mass, inertia and thrust errors, failures): that is the
 robustness question being asked.
+
+A hover-hold sweep (``end.hover_hold``) stops a flight at the instant the hover has been held
+(:class:`~lander_tools.sweep.metrics.HoverHold`). The CPU time of the controller's ``update`` calls
+(``time.process_time``, the only thing timed) and the controller's ``diagnostics()`` after the
+flight go into the row; they are measured, so they are the only numbers of a row that are not a
+function of ``(seed, index)`` (:data:`~lander_tools.sweep.spec.NONDETERMINISTIC_METRICS`).
 """
 from __future__ import annotations
 
 import math
+import time
 import traceback
 from dataclasses import dataclass
 from typing import Any
@@ -23,7 +30,7 @@ import numpy as np
 
 from lander_tools.sweep.case_scene import clear_caches, flown_scene, nominal_scene
 from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.metrics import Samples, altitude_and_tilt, evaluate
+from lander_tools.sweep.metrics import HoverHold, Samples, altitude_and_tilt, evaluate
 from lander_tools.sweep.spec import SweepSpec
 
 __all__ = [
@@ -131,12 +138,16 @@ def fly_case(
     demand_before, demand_after = Demand(altitude=h_before), Demand(altitude=h_after)
 
     fuel0 = float(sim.state().fuel)
-    ts, errs, tilts, rates = [], [], [], []
+    ts, errs, tilts, rates, speeds = [], [], [], [], []
     demands, alts, thr_log = [], [], []
     sat_steps = 0
     touchdown_speed = math.nan
     touchdown: dict[str, Any] = {}
     terminal = "ok"
+    # Hover-hold sweeps stop once the hover has been held (metrics.HoverHold, the one definition).
+    hold = HoverHold(spec.end.hover_hold, spec.end.hover_band, spec.end.hover_speed) if spec.end.hover_hold > 0 else None
+    mode_fuel: dict[str, float] = {}
+    compute = 0.0
     for k in range(n_ctrl + 1):
         st = sim.state()
         t = k * period
@@ -149,13 +160,18 @@ def fly_case(
         errs.append(h - (h_after if t >= t_change else h_before))
         tilts.append(tilt)
         rates.append(math.sqrt(float(st.omega_B @ st.omega_B)))
+        speeds.append(math.sqrt(float(st.v_W @ st.v_W)))
         phase = _phase_name(sim)
         if phase != "FLYING":
             terminal = "crashed" if phase == "CRASHED" else "landed"
             break
-        if k == n_ctrl:
+        if k == n_ctrl or (hold is not None and hold.update(t, errs[-1], speeds[-1])):
             break
+        c0 = time.process_time()
         out = ctrl.update(t, st, demand)
+        compute += time.process_time() - c0
+        if out.mode is not None and out.mode not in mode_fuel:
+            mode_fuel[out.mode] = float(st.fuel)
         _act_on_requests(sim, out)
         sat_steps += bool(out.saturated)
         sim.set_throttles(out.throttles)
@@ -173,6 +189,7 @@ def fly_case(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel0, fuel_end=fuel_end, saturated_updates=sat_steps, period=period,
         touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change, touchdown=touchdown,
+        speed=np.asarray(speeds), mode_fuel=mode_fuel, compute_time=compute, diagnostics=_diagnostics(ctrl),
     )
     row = make_row(spec, controller_index, index, case, samples)
     traj = None
@@ -183,6 +200,12 @@ def fly_case(
             body_rate=samples.body_rate[:m], throttles=np.asarray(thr_log).reshape(m, -1),
         )
     return FlightResult(row, traj)
+
+
+def _diagnostics(ctrl: Any) -> dict[str, float]:
+    """The controller's ``diagnostics()`` (a dict of figures, SI) if it has one, else empty."""
+    diag = getattr(ctrl, "diagnostics", None)
+    return dict(diag()) if callable(diag) else {}
 
 
 def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samples: Samples) -> dict[str, Any]:

@@ -8,7 +8,13 @@ definitions (``spec.METRICS``):
 * ``hover_error``: RMS of ``altitude - demand`` over the last ``end.hover_window`` seconds flown;
 * ``settling_time``: from the demand step until ``|error|`` stays within ``end.settle_band``;
 * ``saturation_time``: controller updates that saturated times the control period;
-* ``max_tilt``: largest angle between body z and the local vertical ``r_hat`` [rad].
+* ``max_tilt``: largest angle between body z and the local vertical ``r_hat`` [rad];
+* hover-hold sweeps (``end.hover_hold > 0``, :class:`HoverHold`): ``hover_time`` is the first
+  control instant of the first run of instants with ``|altitude error| <= end.hover_band`` and
+  ``|v_W| <= end.hover_speed`` lasting ``end.hover_hold``; the loop stops at the run's last instant;
+* ``powered_fuel``: the fuel at the first instant the controller reported the mode
+  ``powered-descent`` minus that at its first ``hover`` (the state each answer was computed from);
+* ``compute_time``, ``mpc_solve_time_*``: measured by the loop, carried as they are (not deterministic).
 """
 from __future__ import annotations
 
@@ -47,6 +53,50 @@ class Samples:
     #: The simulator's touchdown figures: descent_rate, ground_speed [m/s], tilt_deg [deg], and
     #: classification (safe/hard/crash, from the event kind); empty without touchdown.
     touchdown: dict[str, Any] | None = None
+    #: Total speed |v_W| at each instant [m/s] (the hover-hold criterion needs it; None: not recorded).
+    speed: np.ndarray | None = None
+    #: Fuel [kg] at the first instant the controller reported each mode (``ControlOutput.mode``).
+    mode_fuel: dict[str, float] | None = None
+    #: CPU seconds in the controller's update calls (``time.process_time``); NaN: not measured.
+    compute_time: float = math.nan
+    #: The controller's ``diagnostics()`` after the flight (e.g. ``mpc_solve_time_p99`` [s]).
+    diagnostics: dict[str, float] | None = None
+
+
+class HoverHold:
+    """The hover-hold criterion, fed one control instant at a time (the loop's early stop and
+    :func:`evaluate` use this one definition).
+
+    An instant is *in* when ``|altitude error| <= band`` [m] and ``speed <= speed_limit`` [m/s]; the
+    hover is held once the instants are in without a break from ``start`` to an instant at least
+    ``hold`` [s] later. ``start`` is the first instant of the current run (None outside one).
+    """
+
+    def __init__(self, hold: float, band: float, speed_limit: float) -> None:
+        self.hold, self.band, self.speed_limit = hold, band, speed_limit
+        self.start: float | None = None
+        self.held = False
+
+    def update(self, t: float, altitude_error: float, speed: float) -> bool:
+        """Feed the instant ``t`` [s]; True once (and from then on) the hover has been held."""
+        if self.held:
+            return True
+        if abs(altitude_error) <= self.band and speed <= self.speed_limit:
+            if self.start is None:
+                self.start = t
+            self.held = t - self.start >= self.hold - 1e-9
+        else:
+            self.start = None
+        return self.held
+
+    @classmethod
+    def of(cls, t: np.ndarray, altitude_error: np.ndarray, speed: np.ndarray, end: Any) -> HoverHold:
+        """The criterion run over a flight's samples (stops feeding at the first held instant)."""
+        h = cls(end.hover_hold, end.hover_band, end.hover_speed)
+        for tk, ek, vk in zip(t, altitude_error, speed):
+            if h.update(float(tk), float(ek), float(vk)):
+                break
+        return h
 
 
 def altitude_and_tilt(r_W: np.ndarray, q: np.ndarray) -> tuple[float, float]:
@@ -80,6 +130,17 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
     td_rate, td_speed, td_tilt = (float(td.get(k, math.nan)) for k in ("descent_rate", "ground_speed", "tilt_deg"))
     if getattr(end, "land", False):
         outcome, success = _landing_outcome(s.terminal, td, td_rate, td_speed, td_tilt, end)
+    hover_time = math.nan
+    if getattr(end, "hover_hold", 0.0) > 0.0:
+        if s.speed is None:
+            raise ValueError("a hover-hold sweep needs the speed at each instant (Samples.speed)")
+        hold = HoverHold.of(t, e, np.asarray(s.speed, dtype=float), end)
+        if hold.held:
+            hover_time = float(hold.start)  # type: ignore[arg-type]  # set when held
+        outcome = s.terminal if s.terminal != "ok" else ("hovered" if hold.held else "no-hover")
+        success = outcome == "hovered"
+    mode_fuel = s.mode_fuel or {}
+    diag = s.diagnostics or {}
     metrics = {
         "touchdown_speed": s.touchdown_speed,
         "hover_error": hover,
@@ -93,6 +154,13 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "touchdown_descent_rate": td_rate,
         "touchdown_ground_speed": td_speed,
         "touchdown_tilt": td_tilt,
+        "hover_time": hover_time,
+        "fuel_left": s.fuel_end,
+        "powered_fuel": (mode_fuel["powered-descent"] - mode_fuel["hover"]
+                         if "powered-descent" in mode_fuel and "hover" in mode_fuel else math.nan),
+        "compute_time": s.compute_time,
+        "mpc_solve_time_p99": float(diag.get("mpc_solve_time_p99", math.nan)),
+        "mpc_solve_time_median": float(diag.get("mpc_solve_time_median", math.nan)),
     }
     return outcome, success, metrics
 

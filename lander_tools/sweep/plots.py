@@ -17,10 +17,10 @@ import numpy as np
 
 from lander_tools import plotstyle as ps
 from lander_tools.sweep.dispersion import PARAMETER_COLUMNS
-from lander_tools.sweep.spec import METRICS, SweepSpec
+from lander_tools.sweep.spec import SweepSpec, metric_label
 
 #: Metrics shown against the dispersed parameters (the ones a reader asks about first).
-SCATTER_METRICS = ("hover_error", "settling_time", "max_tilt")
+SCATTER_METRICS = ("hover_error", "settling_time", "max_tilt", "hover_time", "fuel_left", "powered_fuel")
 
 
 #: Units of the dispersed parameters (:meth:`FlightCase.parameters`) on the plots' x axes.
@@ -28,15 +28,9 @@ PARAMETER_UNITS: dict[str, str] = {
     "tilt": "rad", "body_rate": "rad/s", "altitude_offset": "m", "velocity_offset": "m/s",
     "wind_mean": "m/s", "wind_gust": "m/s", "demand_step": "m", "mass_error": "relative, -",
     "inertia_error": "relative, -", "thrust_error_max": "relative, -", "failed_thruster": "index",
-    "failure_time": "s",
+    "failure_time": "s", "orbit_altitude": "m", "orbit_phase": "rad", "density_error": "relative, -",
+    "thruster_cant_max": "rad",
 }
-
-
-def metric_label(metric: str) -> str:
-    """``"hover_error [m]"``: the metric's name with the unit its description in ``METRICS`` ends with."""
-    desc = METRICS.get(metric, "")
-    unit = desc[desc.rfind("[") + 1:desc.rfind("]")] if "[" in desc else "-"
-    return f"{metric} [{unit}]"
 
 
 def parameter_label(param: str) -> str:
@@ -92,7 +86,8 @@ def active_parameters(rows: Sequence[dict[str, Any]]) -> list[str]:
 def scatter_figure(rows: Sequence[dict[str, Any]], metrics: Sequence[str]) -> Any | None:
     """Grid: each kept scatter metric (rows) against each varying parameter (columns); failures in red."""
     params = active_parameters(rows)
-    ms = [m for m in SCATTER_METRICS if m in metrics]
+    # A metric NaN in every flight (e.g. hover_time when no hover was held) gets no empty row.
+    ms = [m for m in SCATTER_METRICS if m in metrics and bool(np.isfinite(_values(rows, m)).any())]
     if not params or not ms:
         return None
     plt = ps.pyplot()

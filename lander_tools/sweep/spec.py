@@ -15,7 +15,8 @@ Example (``sweeps/hover-robustness.yaml``)::
 
 Every error is a :class:`SweepSpecError` (a ``ValueError``) whose message names the file and
 the dotted key that is wrong (``dispersions.initial_tilt.normal.std``) and what was expected.
-All quantities are SI: metres, seconds, radians, kg; ``*_error`` dispersions are relative.
+All quantities are SI: metres, seconds, radians, kg; ``*_error`` dispersions are relative, except
+``thruster_cant_error`` (an angle, rad).
 """
 from __future__ import annotations
 
@@ -85,10 +86,14 @@ DISPERSION_KEYS: dict[str, str] = {
     "inertia_error": "relative error of the true inertia vs the controller's model [-]",
     "thrust_error": "relative error of each thruster's true maximum thrust [-]",
     "thruster_failure": "probability and time of one thruster failing (throttle forced to 0)",
+    "orbit_altitude": "change of the initial orbit's radius, the orbit scaled about the planet's centre [m]",
+    "orbit_phase": "rotation of the initial position and velocity about the orbit normal r x v [rad]",
+    "density_error": "relative error of the flown atmosphere's surface density vs the controller's model [-]",
+    "thruster_cant_error": "tilt of each thruster's direction about a random axis perpendicular to it [rad]",
 }
 
 #: Relative errors must keep the physical quantity positive.
-_RELATIVE = ("mass_error", "inertia_error", "thrust_error")
+_RELATIVE = ("mass_error", "inertia_error", "thrust_error", "density_error")
 #: Quantities that are magnitudes, never negative.
 _NON_NEGATIVE = ("wind_gust",)
 
@@ -108,6 +113,10 @@ class Dispersions:
     inertia_error: Distribution | None = None
     thrust_error: Distribution | None = None
     thruster_failure: ThrusterFailure | None = None
+    orbit_altitude: Distribution | None = None
+    orbit_phase: Distribution | None = None
+    density_error: Distribution | None = None
+    thruster_cant_error: Distribution | None = None
 
 
 # --------------------------------------------------------------------------- the rest of the spec
@@ -142,6 +151,15 @@ class EndCondition:
         [m/s] (landing sweeps).
     max_touchdown_tilt : float
         [rad] (landing sweeps).
+    hover_hold : float
+        A hover-hold sweep when > 0 [s] (the de-orbit sweeps): success is instead the hover reached
+        and held, ``|altitude - demand| <= hover_band`` and ``|v_W| <= hover_speed`` at every control
+        instant of a run at least ``hover_hold`` long; the flight stops there. It fails when the
+        duration ends first, on any touchdown, or when it diverges. 0: off.
+    hover_band : float
+        [m] (hover-hold sweeps).
+    hover_speed : float
+        Total speed ``|v_W|`` [m/s] (hover-hold sweeps).
     """
 
     duration: float = 60.0
@@ -156,6 +174,9 @@ class EndCondition:
     max_touchdown_descent_rate: float = 1.0
     max_touchdown_ground_speed: float = 1.0
     max_touchdown_tilt: float = 0.5
+    hover_hold: float = 0.0
+    hover_band: float = 2.0
+    hover_speed: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -181,7 +202,36 @@ METRICS: dict[str, str] = {
     "touchdown_descent_rate": "descent rate at touchdown [m/s] (NaN when no touchdown)",
     "touchdown_ground_speed": "ground speed at touchdown [m/s] (NaN when no touchdown)",
     "touchdown_tilt": "tilt of body z from the local vertical at touchdown [deg] (NaN when no touchdown)",
+    "hover_time": "when the held hover window began (end.hover_hold) [s] (NaN when not held)",
+    "fuel_left": "fuel in the tank at the end of the flight [kg]",
+    "powered_fuel": "fuel burnt from the controller's first powered-descent mode to its first hover mode [kg] "
+                    "(NaN when either is absent)",
+    "compute_time": "CPU time in the controller's update calls over the flight, time.process_time [s] "
+                    "(not deterministic; NaN on the batched path)",
+    "mpc_solve_time_p99": "99th percentile of the MPC's solve times, from controller.diagnostics() [s] "
+                          "(not deterministic; NaN without)",
+    "mpc_solve_time_median": "median of the MPC's solve times, from controller.diagnostics() [s] "
+                             "(not deterministic; NaN without)",
 }
+
+#: The metrics a spec without ``metrics:`` keeps: every one up to the de-orbit sweeps' (those are asked
+#: for by name: they are NaN or meaningless elsewhere, and ``compute_time`` is not deterministic).
+DEFAULT_METRICS: tuple[str, ...] = tuple(METRICS)[:tuple(METRICS).index("hover_time")]
+
+#: Metrics that are measured, not computed: they differ from run to run of the same flight, so every
+#: determinism check (replay, parallel vs serial, batched vs per-flight, through ROS) leaves them out.
+NONDETERMINISTIC_METRICS: tuple[str, ...] = ("compute_time", "mpc_solve_time_p99", "mpc_solve_time_median")
+
+
+def metric_unit(metric: str) -> str:
+    """The unit of a metric: what its description in :data:`METRICS` has in brackets (``-`` if none)."""
+    desc = METRICS.get(metric, "")
+    return desc[desc.find("[") + 1:desc.find("]")] if "[" in desc else "-"
+
+
+def metric_label(metric: str) -> str:
+    """``"hover_error [m]"``: the metric's name with its unit (tables and plot axes)."""
+    return f"{metric} [{metric_unit(metric)}]"
 
 
 @dataclass(frozen=True)
@@ -320,6 +370,10 @@ def _dispersions(ctx: _Ctx, value: Any) -> Dispersions:
             raise ctx.fail(key, f"must be >= 0 (it is a magnitude), got {d.describe()}")
         if name in _NON_NEGATIVE and d.kind == "normal":
             raise ctx.fail(key, "a magnitude must be drawn from uniform or fixed, not normal")
+        if name == "thruster_cant_error" and not max(abs(x) for x in _support(d)) < math.pi / 2:
+            # A tilt of 90 degrees or more turns a thruster sideways or backwards: not a cant error.
+            raise ctx.fail(key, f"a cant error must stay under pi/2 rad (90 deg) in magnitude, got {d.describe()}"
+                           + (" (normal: mean +- 6 std)" if d.kind == "normal" else ""))
         out[name] = d
     return Dispersions(**out)
 
@@ -373,6 +427,14 @@ def _end(ctx: _Ctx, value: Any) -> EndCondition:
     end = EndCondition(**{**defaults.__dict__, **kw})
     if end.hover_window > end.duration:
         raise ctx.fail("end.hover_window", f"({end.hover_window} s) is longer than end.duration ({end.duration} s)")
+    if "hover_hold" not in data:
+        for n in ("hover_band", "hover_speed"):
+            if n in data:
+                raise ctx.fail(f"end.{n}", "only applies to a hover-hold sweep: give end.hover_hold too")
+    elif end.hover_hold > end.duration:
+        raise ctx.fail("end.hover_hold", f"({end.hover_hold} s) is longer than end.duration ({end.duration} s)")
+    elif end.land:
+        raise ctx.fail("end.hover_hold", "a sweep is judged either by a held hover or by a landing (end.land), not both")
     return end
 
 
@@ -399,7 +461,7 @@ def parse_spec(data: Any, source: str = "<dict>") -> SweepSpec:
     name = data.get("name", Path(source).stem if source != "<dict>" else "sweep")
     if not isinstance(name, str):
         raise ctx.fail("name", f"expected a string, got {name!r}")
-    metrics_raw = data.get("metrics", list(METRICS))
+    metrics_raw = data.get("metrics", list(DEFAULT_METRICS))
     if not isinstance(metrics_raw, list) or not metrics_raw:
         raise ctx.fail("metrics", f"expected a non-empty list of metric names, got {metrics_raw!r}")
     for i, m in enumerate(metrics_raw):

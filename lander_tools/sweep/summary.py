@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from lander_tools.sweep.spec import metric_label, metric_unit
+
 #: Percentiles reported for each metric.
 PERCENTILES = (5.0, 50.0, 95.0)
 
@@ -153,16 +155,21 @@ def format_summary(summaries: Sequence[ControllerSummary], comparisons: Sequence
             f"({100 * r.confidence:.0f} % Wilson CI {100 * r.low:.1f}-{100 * r.high:.1f} %)"
         )
         lines.append("  outcomes: " + ", ".join(f"{k} {v}" for k, v in s.outcomes.items()))
-        head = "  {:<22}{:>7}" + "{:>12}" * (len(PERCENTILES) + 1)
-        lines.append(head.format("metric", "n", *[f"p{p:g}" for p in PERCENTILES], "max"))
+        width = max([22] + [len(metric_label(n)) + 1 for n in s.metrics])
+        head = "  {:<" + str(width) + "}{:>7}" + "{:>12}" * (len(PERCENTILES) + 1)
+        lines.append(head.format("metric [unit]", "n", *[f"p{p:g}" for p in PERCENTILES], "max"))
         for name, m in s.metrics.items():
             vals = [m.percentiles[f"p{p:g}"] for p in PERCENTILES] + [m.max]
-            lines.append(head.format(name, m.count, *[f"{v:.4g}" for v in vals]))
+            lines.append(head.format(metric_label(name), m.count, *[f"{v:.4g}" for v in vals]))
+        ct = s.metrics.get("compute_time")
+        if ct is not None and ct.count:
+            lines.append(f"  compute: {ct.mean * ct.count:.3g} s of CPU in the controller's updates over {ct.count} "
+                         f"flights = {ct.mean:.3g} s a flight (mean; median {ct.percentiles['p50']:.3g} s)")
     for c in comparisons:
         lines.append(
             f"compare {c.b} vs {c.a} on {c.pairs} shared cases: both ok {c.both_succeeded}, "
             f"only {c.a} ok {c.only_a}, only {c.b} ok {c.only_b}, both failed {c.both_failed}"
         )
         lines.append("  median difference (" + c.b + " - " + c.a + "): "
-                     + ", ".join(f"{k} {v:.4g}" for k, v in c.median_difference.items()))
+                     + ", ".join(f"{k} {v:.4g} {metric_unit(k)}" for k, v in c.median_difference.items()))
     return "\n".join(lines)

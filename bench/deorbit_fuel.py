@@ -30,6 +30,7 @@ from lander_autopilot.controllers.registry import make_controller
 from lander_sim.physics import constants as c
 from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
+from lander_tools.sweep.metrics import HoverHold
 
 
 @dataclass
@@ -59,8 +60,8 @@ def fly(scene_name: str, law: str, hold: float = 30.0, land: bool = True, max_ti
     ctrl = make_controller(law, sc.vehicle)
     target = 500.0
     f = Flight(scene_name, law, [])
-    run_start: float | None = None
-    window: list[tuple[float, float]] = []
+    held = HoverHold(hold, band, speed_limit)  # the sweeps' success criterion, one definition
+    window: list[tuple[float, float]] = []  # (error, speed) over the current run in the band
     demand = Demand(altitude=target)
     t0 = time.perf_counter()
     while sim.t < max_time:
@@ -74,19 +75,18 @@ def fly(scene_name: str, law: str, hold: float = 30.0, land: bool = True, max_ti
         if phase == "hover" and demand.altitude > 0:
             err = abs(float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - target)
             spd = float(np.linalg.norm(s.v_W))
-            if err < band and spd < speed_limit:
-                run_start = sim.t if run_start is None else run_start
-                window.append((err, spd))
-                if sim.t - run_start >= hold - 1e-9:
-                    f.held = sim.t - run_start
-                    f.hover_error = max(e for e, _ in window)
-                    f.hover_speed = max(v for _, v in window)
-                    if not land:
-                        break
-                    demand = Demand(altitude=0.0)
+            done = held.update(sim.t, err, spd)
+            if held.start is None:
+                window.clear()
             else:
-                run_start, window = None, []
-                f.held = max(f.held, 0.0)
+                window.append((err, spd))
+            if done:
+                f.held = sim.t - held.start  # type: ignore[operator]  # set while in a run
+                f.hover_error = max(e for e, _ in window)
+                f.hover_speed = max(v for _, v in window)
+                if not land:
+                    break
+                demand = Demand(altitude=0.0)
         for r in out.requests:
             if r.kind == "deploy_parachute":
                 sim.deploy_parachute()
@@ -100,8 +100,7 @@ def fly(scene_name: str, law: str, hold: float = 30.0, land: bool = True, max_ti
             break
     f.wall = time.perf_counter() - t0
     f.transitions = [(t, a.value, b.value, why) for t, a, b, why in ctrl.log.transitions]
-    diag = getattr(ctrl, "diagnostics", None)
-    f.diagnostics = dict(diag()) if callable(diag) else {}
+    f.diagnostics = dict(ctrl.diagnostics())
     return f
 
 

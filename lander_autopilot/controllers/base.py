@@ -179,6 +179,11 @@ class Controller(ABC):
     def reset(self) -> None:  # noqa: B027 - an optional hook, not abstract: stateless laws keep it
         """Forget internal state. Stateless laws have nothing to forget."""
 
+    def diagnostics(self) -> dict[str, float]:
+        """Figures of the law's own work (SI units, e.g. a solver's times in s) for the autopilot
+        node's ``/diagnostics``, a sweep's row and the benches; none by default."""
+        return {}
+
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         """Throttles for ``state`` at time ``t`` [s] to meet ``demand``, clipped to [0, 1]."""
         return saturate(self.command(t, state, demand))

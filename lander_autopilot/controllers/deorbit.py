@@ -26,12 +26,14 @@ node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
                   airflow, while the chute brakes harder than the descent law would and until the
                   descent law's braking curve (with the chute's drag, :class:`DescentToAltitude`)
                   is reached
-    powered-descent  once the descent law brakes (leaves its coast mode): the landing law
-                  (:class:`.landing.LandingController`) with its profile ending at the demand
-                  altitude, braking at ``brake_fraction`` of the net thrust plus the chute's drag
-    hover         within ``hover_band`` of the demand altitude and ``hover_speed`` of rest: the
-                  ground-speed law (:class:`.ground_speed.GroundSpeedController`) holds the demand
-                  altitude and zero ground speed
+    powered-descent  once the descent law brakes (leaves its coast mode): the landing law's
+                  horizontal and attitude loops with the vertical loop of
+                  :class:`DescentToAltitude` (braking limb ending at rest on the demand altitude,
+                  ``brake_fraction`` of the net thrust plus the chute's drag, scheduled gain)
+    hover         once the fall is stopped (climb rate within ``hover_speed``) within
+                  ``hover_band`` of the demand altitude, or anywhere under it: the ground-speed
+                  law (:class:`.ground_speed.GroundSpeedController`) holds the demand altitude
+                  and zero ground speed
     landing       on demand (demand altitude 0 while hovering): the landing law to touchdown
 
 Why chute first: the canopy takes the lander from ~250 m/s to its terminal ~37 m/s for no fuel;
@@ -281,10 +283,7 @@ class DeorbitController(Controller):
                     r for r in inner.requests if r.kind != REQUEST_LANDING_UNREACHABLE))
                 self.descent._unreachable_raised = False
             if any(r.kind == REQUEST_DEPLOY_PARACHUTE for r in inner.requests):
-                self._chute_open = True
-                self.descent.drag_k = self._drag_k
-                if self.phase is Phase.ENTRY:
-                    self._to(t, Phase.PARACHUTE, "chute within its limits")
+                self._open_chute(t)
             if self.phase in (Phase.ENTRY, Phase.PARACHUTE) and self._waits_for_chute(state, demand):
                 # Chute first: no thrust while the chute is still to open or still brakes harder than
                 # the descent law's braking limb would; the law's mode goes back to coast, so that the
@@ -325,21 +324,24 @@ class DeorbitController(Controller):
         return ControlOutput(inner.throttles, inner.saturated, inner.unclipped, mode=self.phase.value,
                              requests=inner.requests)
 
+    def _open_chute(self, t: float) -> None:
+        """The descent law asked for the chute: its drag from now on, and entry ends."""
+        self._chute_open = True
+        self.descent.drag_k = self._drag_k
+        if self.phase is Phase.ENTRY:
+            self._to(t, Phase.PARACHUTE, "chute within its limits")
+
     def _before_chute(self, t: float, state: StateView) -> ControlOutput:
         """Entry, chute first, chute still packed: the entry command (:meth:`_entry_command`) and the
         descent law's chute request alone. Its throttles would not be flown here, so its whole update
         (ground-speed mixing, failure watch: ~0.4 ms, 18,000 times from scenario 0's orbit) is not run
         until the chute is out; it then starts from the chute's instant."""
-        h = self._altitude(state)
-        speed = float(np.linalg.norm(state.v_W))
-        hd = float(state.v_W @ state.r_W) / (c.MARS_RADIUS + h)
-        request = self.descent._chute_request(h, hd, speed)
+        request = self.descent._chute_request(self._altitude(state), self._climb_rate(state),
+                                              float(np.linalg.norm(state.v_W)))
         if request is None:
             u = saturate(self._entry_command(t, state))
             return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value)
-        self._chute_open = True
-        self.descent.drag_k = self._drag_k
-        self._to(t, Phase.PARACHUTE, "chute within its limits")
+        self._open_chute(t)
         u = saturate(self._retrograde(state, 0.0))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=(request,))
 
@@ -376,7 +378,7 @@ class DeorbitController(Controller):
         the chute's terminal speed, five times the law's thrust margin: the lander braked 28 m past
         the hover altitude in a dispersed sweep flight."""
         h = self._altitude(state)
-        climb = float(state.v_W @ state.r_W) / (c.MARS_RADIUS + h)
+        climb = self._climb_rate(state)
         prev, self._last_climb = self._last_climb, (t, climb)
         if prev is None or t <= prev[0] or climb > -5.0:
             return
@@ -409,12 +411,18 @@ class DeorbitController(Controller):
     def _altitude(state: StateView) -> float:
         return float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
 
+    @staticmethod
+    def _climb_rate(state: StateView) -> float:
+        """Velocity along the local vertical [m/s], up positive."""
+        # R + h rather than |r|: the arithmetic the law's callers used inline, bit for bit
+        return float(state.v_W @ state.r_W) / (c.MARS_RADIUS + DeorbitController._altitude(state))
+
     def _settled(self, state: StateView, demand: Demand) -> bool:
         """The fall is stopped (climb rate within ``hover_speed`` of zero, or climbing) at or under
         the top of the hover band: the hover law takes the rest out (a drift in the wind, or an
         altitude below the band after braking short on a thinner atmosphere than modelled)."""
         h = self._altitude(state)
-        climb = float(state.v_W @ state.r_W) / (c.MARS_RADIUS + h)
+        climb = self._climb_rate(state)
         return h - demand.altitude <= self.hover_band and (
             abs(climb) <= self.hover_speed if h - demand.altitude >= -self.hover_band else climb >= -self.hover_speed)
 

@@ -23,6 +23,7 @@ schedule so the two can be held to each other.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,19 +72,26 @@ def vertical_descent_model(mass: float, damping: float, thrust_vertical: float) 
     return np.array([[0.0, 1.0], [0.0, -damping]]), np.array([[0.0], [thrust_vertical / mass]])
 
 
-def schedule_vertical(thrust_vertical: float, masses: Any, dampings: Any,
-                      poles: tuple[complex, ...] = (-0.9, -1.1)) -> GainSchedule:
-    """The vertical law's gain placed at every ``(mass [kg], damping [1/s])`` of the grid."""
+def _schedule_grid(model: Callable[[float, float, float], tuple[np.ndarray, np.ndarray]], thrust_vertical: float, masses: Any, dampings: Any,
+                   poles: tuple[complex, ...]) -> GainSchedule:
+    """The gain of ``model(mass, damping, thrust_vertical) -> (A, B)`` placing ``poles`` at every
+    ``(mass [kg], damping [1/s])`` of the grid."""
     ms, ds = np.asarray(masses, float).ravel(), np.asarray(dampings, float).ravel()
     if len(ms) < 2 or len(ds) < 2:
         raise DesignError("schedule: need at least two masses and two dampings (a grid to interpolate on)")
     points, gains = [], []
     for m in ms:
         for d in ds:
-            A, B = vertical_descent_model(m, d, thrust_vertical)
+            A, B = model(m, d, thrust_vertical)
             points.append((m, d))
             gains.append(place_poles(A, B, list(poles)).K)
     return GainSchedule(np.array(points), np.array(gains), ("mass [kg]", "drag damping [1/s]"), tuple(poles))
+
+
+def schedule_vertical(thrust_vertical: float, masses: Any, dampings: Any,
+                      poles: tuple[complex, ...] = (-0.9, -1.1)) -> GainSchedule:
+    """The vertical law's gain placed at every ``(mass [kg], damping [1/s])`` of the grid."""
+    return _schedule_grid(vertical_descent_model, thrust_vertical, masses, dampings, poles)
 
 
 def descent_rate_model(mass: float, damping: float, thrust_vertical: float) -> tuple[np.ndarray, np.ndarray]:
@@ -106,18 +114,9 @@ def schedule_descent_rate(thrust_vertical: float, masses: Any, dampings: Any, po
     separately but not jointly, so the interpolated gain differs from the exact one by a second-order
     term in the grid step (``test_schedule.py`` measures it).
     """
-    ms, ds = np.asarray(masses, float).ravel(), np.asarray(dampings, float).ravel()
-    if len(ms) < 2 or len(ds) < 2:
-        raise DesignError("schedule: need at least two masses and two dampings (a grid to interpolate on)")
     if not pole < 0:
         raise DesignError(f"schedule: the descent-rate pole must be negative (stable), got {pole}")
-    points, gains = [], []
-    for m in ms:
-        for d in ds:
-            A, B = descent_rate_model(m, d, thrust_vertical)
-            points.append((m, d))
-            gains.append(place_poles(A, B, [pole]).K)
-    return GainSchedule(np.array(points), np.array(gains), ("mass [kg]", "drag damping [1/s]"), (pole,))
+    return _schedule_grid(descent_rate_model, thrust_vertical, masses, dampings, (pole,))
 
 
 def to_iosystem(schedule: GainSchedule, n_states: int) -> Any:

@@ -23,6 +23,8 @@ from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]  # 
 
 #: outcome codes of :func:`entry_flight`
 REACHED_CHUTE, REACHED_GROUND, SKIPPED, NO_ENTRY, TIMED_OUT = 0, 1, 2, 3, 4
+#: the event of reaching the top of the atmosphere from above (located, never returned)
+_AT_TOP = 5
 
 
 @njit(cache=True)
@@ -70,6 +72,50 @@ def _events(s: tuple[float, float, float, float, float, float], radius: float, k
     if h <= top:
         chute = max(math.sqrt(v2) - vmax, kc * rho0 * math.exp(-h * inv_h) * v2 - dmax)
     return chute, h, x * vx + y * vy + z * vz
+
+
+@njit(cache=True)
+def _event_value(s: tuple[float, float, float, float, float, float], ev: int, radius: float, kc: float,
+                 rho0: float, inv_h: float, top: float, vmax: float, dmax: float) -> float:
+    """Event function of ``ev``, positive before it fires: chute may not open yet, altitude, minus
+    the radial speed (climbing again), altitude above the top of the atmosphere."""
+    chute, h, rv = _events(s, radius, kc, rho0, inv_h, top, vmax, dmax)
+    if ev == REACHED_CHUTE:
+        return chute
+    if ev == REACHED_GROUND:
+        return h
+    if ev == SKIPPED:
+        return -rv
+    return h - top
+
+
+@njit(cache=True)
+def _locate(s: tuple[float, float, float, float, float, float], dt: float, ev: int, f0: float, f1: float,
+            gm: float, radius: float, kd: float, kc: float, rho0: float, inv_h: float, top: float, vmax: float,
+            dmax: float) -> tuple[float, tuple[float, float, float, float, float, float]]:
+    """``(t, state)`` where event ``ev`` fires within the step ``dt`` from ``s`` (``f0 > 0 >= f1``):
+    regula falsi with the Illinois modification on the event function, each trial point one RK4
+    step from ``s``, to 1e-9 of the bracket's values or 1e-9 s."""
+    lo, hi, f_lo, f_hi = 0.0, dt, f0, f1
+    tm, sm = dt, _rk4(s, dt, gm, radius, kd, rho0, inv_h, top)
+    side = 0
+    for _ in range(60):
+        tm = lo - f_lo * (hi - lo) / (f_hi - f_lo)
+        sm = _rk4(s, tm, gm, radius, kd, rho0, inv_h, top)
+        fm = _event_value(sm, ev, radius, kc, rho0, inv_h, top, vmax, dmax)
+        if abs(fm) <= 1e-9 * (abs(f0) + abs(f1)) or hi - lo < 1e-9:
+            break
+        if fm > 0.0:
+            lo, f_lo = tm, fm
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        else:
+            hi, f_hi = tm, fm
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+    return tm, sm
 
 
 @njit(cache=True)
@@ -125,20 +171,8 @@ def entry_flight(x: float, y: float, z: float, vx: float, vy: float, vz: float, 
         s1 = _rk4(s, dt, gm, radius, 0.0, rho0, inv_h, top)
         _, h1, _ = _events(s1, radius, kc, rho0, inv_h, top, vmax, dmax)
         if h1 <= top:
-            # secant on altitude - top from the last state above
-            lo, hi, f_lo, f_hi = 0.0, dt, h - top, h1 - top
-            for _ in range(30):
-                tm = lo - f_lo * (hi - lo) / (f_hi - f_lo)
-                sm = _rk4(s, tm, gm, radius, 0.0, rho0, inv_h, top)
-                _, hm, _ = _events(sm, radius, kc, rho0, inv_h, top, vmax, dmax)
-                fm = hm - top
-                if abs(fm) < 1e-6:
-                    break
-                if fm > 0.0:
-                    lo, f_lo = tm, fm
-                else:
-                    hi, f_hi = tm, fm
-            s, t = sm, t + tm
+            tm, s = _locate(s, dt, _AT_TOP, h - top, h1 - top, gm, radius, 0.0, kc, rho0, inv_h, top, vmax, dmax)
+            t += tm
             break
         s, t, h = s1, t + dt, h1
     x, y, z, vx, vy, vz = s
@@ -169,40 +203,12 @@ def entry_flight(x: float, y: float, z: float, vx: float, vy: float, vz: float, 
         # Events may share the step: locate each candidate by secant and keep the earliest. Secant
         # (regula falsi, Illinois) on the event function along RK4 sub-steps from the last state.
         best_t, best_s, best = dt, s1, which
-        for ev in (REACHED_CHUTE, REACHED_GROUND, SKIPPED):
-            if ev == REACHED_CHUTE:
-                f0, f1 = chute, chute1
-                fires = chute > 0.0 and chute1 <= 0.0
-            elif ev == REACHED_GROUND:
-                f0, f1 = h, h1
-                fires = h1 <= 0.0
-            else:
-                f0, f1 = -rv, -rv1
-                fires = rv < 0.0 and rv1 >= 0.0
-            if not fires:
-                continue
-            lo, hi, f_lo, f_hi = 0.0, dt, f0, f1
-            tm, sm = dt, s1
-            side = 0
-            for _ in range(60):
-                tm = lo - f_lo * (hi - lo) / (f_hi - f_lo)
-                sm = _rk4(s, tm, gm, radius, kd, rho0, inv_h, top)
-                c_m, h_m, rv_m = _events(sm, radius, kc, rho0, inv_h, top, vmax, dmax)
-                fm = c_m if ev == REACHED_CHUTE else (h_m if ev == REACHED_GROUND else -rv_m)
-                if abs(fm) <= 1e-9 * (abs(f0) + abs(f1)) or hi - lo < 1e-9:
-                    break
-                if fm > 0.0:
-                    lo, f_lo = tm, fm
-                    if side == 1:
-                        f_hi *= 0.5
-                    side = 1
-                else:
-                    hi, f_hi = tm, fm
-                    if side == -1:
-                        f_lo *= 0.5
-                    side = -1
-            if tm <= best_t:
-                best_t, best_s, best = tm, sm, ev
+        for ev, f0, f1, fires in ((REACHED_CHUTE, chute, chute1, chute > 0.0 and chute1 <= 0.0),
+                                  (REACHED_GROUND, h, h1, h1 <= 0.0), (SKIPPED, -rv, -rv1, rv < 0.0 and rv1 >= 0.0)):
+            if fires:
+                tm, sm = _locate(s, dt, ev, f0, f1, gm, radius, kd, kc, rho0, inv_h, top, vmax, dmax)
+                if tm <= best_t:
+                    best_t, best_s, best = tm, sm, ev
         s, t = best_s, t + best_t
         x, y, z, vx, vy, vz = s
         h = math.sqrt(x * x + y * y + z * z) - radius

@@ -189,7 +189,7 @@ def fly_case(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel0, fuel_end=fuel_end, saturated_updates=sat_steps, period=period,
         touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change, touchdown=touchdown,
-        speed=np.asarray(speeds), mode_fuel=mode_fuel, compute_time=compute, diagnostics=_diagnostics(ctrl),
+        speed=np.asarray(speeds), mode_fuel=mode_fuel, compute_time=compute, diagnostics=dict(ctrl.diagnostics()),
     )
     row = make_row(spec, controller_index, index, case, samples)
     traj = None
@@ -200,12 +200,6 @@ def fly_case(
             body_rate=samples.body_rate[:m], throttles=np.asarray(thr_log).reshape(m, -1),
         )
     return FlightResult(row, traj)
-
-
-def _diagnostics(ctrl: Any) -> dict[str, float]:
-    """The controller's ``diagnostics()`` (a dict of figures, SI) if it has one, else empty."""
-    diag = getattr(ctrl, "diagnostics", None)
-    return dict(diag()) if callable(diag) else {}
 
 
 def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samples: Samples) -> dict[str, Any]:

@@ -29,6 +29,7 @@ from unittest import mock
 
 import numpy as np
 import pytest
+from handover_case import handover_sim
 
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_tools import cli, reference_overlay
@@ -36,7 +37,7 @@ from lander_tools.analysis import Flight
 from lander_tools.bagio import read_bag
 from lander_tools.plotstyle import unlabelled_axes
 
-HEIGHT, CLIMB, FUEL, DEMAND = 852.0, -36.8, 67.39, 500.0
+DEMAND = 500.0
 #: The tests that need the reference: two solves of ~10 s CPU each, shared by them (module fixtures):
 #: the file took 28 s wall at a quiet moment and 55 s with the 2 cores shared, so slow, as the other
 #: tests of the optimum are (test_deorbit_mpc.py, test_fuel_optimal.py).
@@ -61,26 +62,15 @@ def _write_flight_bag(path: Path, until: float, after_hover: float = 3.0) -> Rec
     from rosgraph_msgs.msg import Clock
 
     from lander_autopilot.controllers import Demand
-    from lander_autopilot.controllers.deorbit import Phase, thrust_axis_attitude
+    from lander_autopilot.controllers.deorbit import Phase
     from lander_autopilot.controllers.registry import make_controller
     from lander_autopilot.ros import convert as ap
     from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
-    from lander_sim.physics import constants as c
     from lander_sim.ros import convert as sim_convert
     from lander_sim.ros.sim_adapter import SimAdapter
-    from lander_sim.scenes import load_scene
-    from lander_sim.simulation import Simulation
     from lander_tools.bagio import lander_typestore
 
-    sc = load_scene("deorbit")
-    y = sc.initial_state.copy()
-    y[0:3] = (c.MARS_RADIUS + HEIGHT, 0.0, 0.0)
-    y[3:6] = (CLIMB, 0.0, 0.0)
-    y[6:10] = thrust_axis_attitude(y[6:10], np.array([1.0, 0.0, 0.0]))  # thrust axis up
-    y[10:13] = 0.0
-    y[13] = FUEL
-    sim = Simulation(dataclasses.replace(sc, initial_state=y))
-    sim.deploy_parachute()
+    sc, sim = handover_sim()
     adapter = SimAdapter(sim)
     ctrl = make_controller("deorbit", sc.vehicle)
     ctrl.start_in(Phase.PARACHUTE, chute_open=True)

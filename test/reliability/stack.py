@@ -87,6 +87,7 @@ class Watch(rosutil.Observer):
         from rcl_interfaces.srv import GetParameters, SetParameters
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64
+        from std_srvs.srv import Trigger
 
         from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
         from lander_interfaces.srv import SwitchController
@@ -114,6 +115,7 @@ class Watch(rosutil.Observer):
             "sim_get_parameters": n.create_client(GetParameters, "/lander_sim/get_parameters"),
             "ap_set_parameters": n.create_client(SetParameters, "/autopilot/set_parameters"),
             "ap_get_parameters": n.create_client(GetParameters, "/autopilot/get_parameters"),
+            "autopilot_matched": n.create_client(Trigger, "/autopilot/matched"),
         }
 
     def _on_diag(self, msg: Any) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,13 @@ def _fly_lockstep(stack: Stack, watch: Watch, bag: Path) -> None:
                      {"/lander/throttle": 2}, services=("reset", "resume"))
     from lander_ros.flight_span import parse_matched
 
+    # The answers' side too: the autopilot's throttle writer matched its three readers (watch, sim,
+    # recorder) before the closes below count. Without it a run under load recorded no answer to
+    # the first 14 states of the flight (the recorder's throttle reader matched late). Each poll
+    # waits for the service's answer; the closes then give the readers' side a reset's time.
+    deadline = time.monotonic() + START_TIMEOUT
+    while parse_matched(watch.call("autopilot_matched").message).get("/lander/throttle", 0) < 3:
+        assert time.monotonic() < deadline, "the autopilot's throttle writer never matched its three readers"
     closed = 0
     for _attempt in range(6):
         n_thr = len(watch.throttles)

@@ -14,6 +14,11 @@ One control step, once per state the simulator publishes (it publishes at the co
 
     /lander/state -> StateView -> controller.update(t, state, demand) -> /lander/throttle
                                                                       -> /autopilot/status
+                                     (timed: lander_autopilot.ros.loop_stats) -> /diagnostics
+
+``/diagnostics`` (``DiagnosticArray``): the control loop's figures (control period, compute time
+per period, overruns) and the controller's own ``diagnostics()`` when it has one, once per second
+of sim time and at every mode change (docs/autopilot_node.md, "/diagnostics").
 
 Swapping the controller while flying: service ``/autopilot/switch_controller``
 (``lander_interfaces/srv/SwitchController``) or an atomic change of the parameters
@@ -35,6 +40,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -63,6 +69,7 @@ from lander_autopilot.ros.config import (
     parse_controller_params,
     scene_autopilot,
 )
+from lander_autopilot.ros.loop_stats import LoopStats, ReportClock, control_status, controller_status
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
@@ -123,6 +130,7 @@ class AutopilotNode(Node):
         self._pub_throttle = self.create_publisher(ThrottleCommand, "/lander/throttle", OUTPUT_QOS)
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
+        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
         self._sub_state = self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
@@ -148,6 +156,10 @@ class AutopilotNode(Node):
         self._state_lost = False
         self._next_lost_report = 0.0
         self._mode = ""  # the controller mode last announced
+        # /diagnostics: compute time per control period, reported on the sim clock (ReportClock).
+        self._loop = LoopStats()
+        self._reports = ReportClock()
+        self._diag = DiagnosticArray()
         self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
@@ -196,9 +208,15 @@ class AutopilotNode(Node):
         self._control_step(msg)
 
     def _control_step(self, msg: LanderState) -> None:
+        if msg.sequence <= self.slot.last_sequence:
+            # The simulator was reset (the slot resets the controller): a new flight, new figures.
+            self._loop.reset()
+            self._reports.reset()
         try:
             state = convert.state_view(msg, self.slot.choice.vehicle.n_thrusters)
+            t0 = time.perf_counter()
             out = self.slot.step(state, msg.sequence)
+            self._loop.add(state.t, time.perf_counter() - t0)
         except (convert.StateError, OutputError) as exc:
             self._refuse(str(exc), msg.header.stamp)
             self._publish_status()
@@ -210,10 +228,14 @@ class AutopilotNode(Node):
             return
         convert.fill_throttle(self._cmd, msg, out.throttles)
         self._last_stamp = msg.header.stamp
-        if self._act_on(out, msg):
-            return  # the command goes out once the simulator has deployed the chute
-        self._pub_throttle.publish(self._cmd)
-        self._publish_status()
+        mode_changed = self.slot.mode != self._mode
+        if not self._act_on(out, msg):  # held: the command goes out once the simulator has deployed the chute
+            self._pub_throttle.publish(self._cmd)
+            self._publish_status()
+        # After the command (a lockstep simulator is not kept waiting): every second of sim time,
+        # and at each mode change so that a bag holds the figures at every phase boundary.
+        if self._reports.due(state.t) or mode_changed:
+            self._publish_diagnostics(msg.header.stamp)
 
     def _act_on(self, out, msg: LanderState) -> bool:
         """Publish the law's mode changes and reports; ask the simulator for the parachute.
@@ -282,7 +304,8 @@ class AutopilotNode(Node):
 
         response.success = True
         response.message = format_matched({"sub:/lander/state": self._sub_state.get_publisher_count(),
-                                           "/lander/throttle": self._pub_throttle.get_subscription_count()})
+                                           "/lander/throttle": self._pub_throttle.get_subscription_count(),
+                                           "/diagnostics": self._pub_diag.get_subscription_count()})
         return response
 
     def _srv_land(self, request: Trigger.Request, response: Trigger.Response):
@@ -349,6 +372,7 @@ class AutopilotNode(Node):
         if choice is not None:
             seq = self.slot.last_sequence
             old = self.slot.swap(choice)
+            self._loop.reset(keep_period=True)  # the figures are the installed controller's
             detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
                       f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
             self.get_logger().info(detail)
@@ -404,6 +428,22 @@ class AutopilotNode(Node):
         convert.fill_demand_status(self._status, s.demand, s.mode)
         self._pub_status.publish(self._status)
 
+    def _publish_diagnostics(self, stamp) -> None:
+        """One ``DiagnosticArray``: the control loop's status, then the controller's own figures
+        when its ``diagnostics()`` gives any (a failing one is reported, never raised)."""
+        name = self.slot.name
+        statuses = [(f"{NODE_NAME}: control", control_status(self._loop.summary(), name, self.slot.mode))]
+        try:
+            figures = dict(self.slot.choice.controller.diagnostics())
+            own = controller_status(figures) if figures else None
+        except Exception as exc:  # noqa: BLE001 - a plug-in's diagnostics must not take the node down
+            own = controller_status(None, f"diagnostics() failed: {type(exc).__name__}: {exc}")
+        if own is not None:
+            statuses.append((f"{NODE_NAME}: {name}", own))
+        convert.fill_diagnostics(self._diag, stamp=stamp, hardware_id=self.get_fully_qualified_name(),
+                                 statuses=statuses)
+        self._pub_diag.publish(self._diag)
+
     def _publish_event(self, kind: int, detail: str, values: list[float], stamp=None) -> None:
         ev = FlightEvent()
         convert.fill_event(ev, stamp=self._stamp(stamp), kind=kind, detail=detail, values=values)
@@ -413,7 +453,7 @@ class AutopilotNode(Node):
     def flush(self, timeout: float = FLUSH_TIMEOUT) -> bool:
         """Wait until the subscribers acknowledged the commands, status and events published
         (before the process exits: a recorder then gets the last ones too)."""
-        return flush((self._pub_throttle, self._pub_status, self._pub_events), timeout)
+        return flush((self._pub_throttle, self._pub_status, self._pub_events, self._pub_diag), timeout)
 
 
 def _number(value) -> float:

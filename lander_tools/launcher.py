@@ -96,6 +96,9 @@ STALL_TIMEOUT = 30.0
 #: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
 STOP_GRACE = 5.0
 
+#: MODE_CHANGED events printed by ``lander fly`` (the rest are counted in one line at the end).
+MODE_LINES = 20
+
 ACTION_KINDS = ("demand_altitude", "wind", "controller", "throttle", "stabiliser", "parachute")
 #: Wall seconds to wait for the autopilot to report a new demand in force.
 CONFIRM_TIMEOUT = 10.0
@@ -557,8 +560,13 @@ class _Supervisor:
             "/lander/throttle": n.create_subscription(ThrottleCommand, "/lander/throttle", self._on_throttle, reliable),
         }
         if controller is not None:
+            from diagnostic_msgs.msg import DiagnosticArray
+
             self.subs["/autopilot/status"] = n.create_subscription(
                 AutopilotStatus, "/autopilot/status", lambda _m: self._count("/autopilot/status"), reliable)
+            # The autopilot's reports on /diagnostics (the sim counts its own): the bag check's reference.
+            self.subs["/diagnostics"] = n.create_subscription(
+                DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
         self.answered_first = False  #: the autopilot answered state 1 (the reset's) since the last reset
         self.last_answer = 0  #: highest state sequence answered on /lander/throttle since the reset
         self.clock_t = 0.0  #: latest /clock [s]: where a paused sim stands before its state is out
@@ -574,6 +582,7 @@ class _Supervisor:
         self.touchdown: dict[str, float] = {}
         self.touchdown_class = ""  #: safe / hard / crash, from the event's kind
         self.gimbal_locks: list[float] = []  #: sim times [s] of GIMBAL_LOCK events (printed once, counted)
+        self.mode_changes: list[float] = []  #: sim times [s] of MODE_CHANGED events (the first MODE_LINES printed)
         self.pending = sorted(plan.timeline, key=lambda a: a.t)
         self.held_throttle: Action | None = None
         self.futures: list[Any] = []
@@ -594,6 +603,10 @@ class _Supervisor:
     # callbacks ------------------------------------------------------------------------------
     def _count(self, topic: str) -> None:
         self.received[topic] = self.received.get(topic, 0) + 1
+
+    def _on_diagnostics(self, msg: Any) -> None:
+        if any(st.name.startswith(f"{AUTOPILOT_NODE}:") for st in msg.status):
+            self._count("/diagnostics")  # the autopilot's only: the sim's come from FLIGHT_ENDED
 
     def _on_throttle(self, msg: Any) -> None:
         self._count("/lander/throttle")
@@ -648,8 +661,13 @@ class _Supervisor:
             self.gimbal_locks.append(t)
             if len(self.gimbal_locks) > 1:
                 return
+        if msg.kind == E.MODE_CHANGED:
+            # A law's phases (e.g. deorbit's eight) as they happen; a law that flapped would flood.
+            self.mode_changes.append(t)
+            if len(self.mode_changes) > MODE_LINES:
+                return
         if msg.kind in (E.LANDED, E.HARD_LANDING, E.CRASHED, E.GIMBAL_LOCK, E.CONTROLLER_SWITCHED, E.FUEL_OUT,
-                        E.LANDING_UNREACHABLE):
+                        E.LANDING_UNREACHABLE, E.MODE_CHANGED):
             self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
 
     def _publish(self, pub: Any, msg: Any) -> None:
@@ -875,6 +893,7 @@ def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
         pubs["/lander/throttle"] += 1
         pubs["/lander/events"] += 1
         pubs["/autopilot/status"] = 1
+        pubs["/diagnostics"] += 1
     return pubs
 
 
@@ -922,8 +941,13 @@ def wait_until_matched(f: LaunchedFlight) -> None:
                 waiting.append("the autopilot's services")
                 return False
             res = _call(f.executor, sup.cli_autopilot_matched, Trigger.Request(), STARTUP_TIMEOUT, "autopilot matched")
-            if parse_matched(res.message).get("sub:/lander/state", 0) < 1:
+            have_ap = parse_matched(res.message)
+            if have_ap.get("sub:/lander/state", 0) < 1:
                 waiting.append("autopilot <- /lander/state")
+            # its first report goes out with its answer to state 1: its writer must have the readers
+            readers = 1 + (sup.recorder is not None and sup.recorder.wanted("/diagnostics"))
+            if have_ap.get("/diagnostics", 0) < readers:
+                waiting.append("autopilot -> /diagnostics")
         return not waiting
 
     deadline = time.monotonic() + STARTUP_TIMEOUT
@@ -1037,6 +1061,8 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
     * ``/autopilot/status`` and, with an autopilot, ``/lander/events``: at least that (the
       autopilot may report before the flight, e.g. its start-up status, which the recorder may
       hold too);
+    * ``/diagnostics`` with an autopilot: at least the sim's count plus the autopilot's reports this
+      launcher received (both publish there; the bag cannot tell whose a message is by its count);
     * inputs this launcher published (wind, demand): at least what it sent (anyone may add more).
     """
     assert sup.recorder is not None
@@ -1048,6 +1074,7 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
         ref["/autopilot/status"] = (sup.received.get("/autopilot/status", 0), False)
         ref["/lander/events"] = (max(ref.get("/lander/events", (0, False))[0], sup.received.get("/lander/events", 0)),
                                  False)
+        ref["/diagnostics"] = (ref.get("/diagnostics", (0, False))[0] + sup.received.get("/diagnostics", 0), False)
     for t in ("/lander/wind", "/lander/demand_altitude"):
         ref[t] = (sup.sent.get(t, 0), False)
     return {t: v for t, v in ref.items() if sup.recorder.wanted(t)}
@@ -1150,6 +1177,10 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
             ts = sup.gimbal_locks
             out.write(f"[fly] gimbal lock: {len(ts)} events in all, t = {ts[0]:.2f} to {ts[-1]:.2f} s "
                       "(only the first is shown)\n")
+        if len(sup.mode_changes) > MODE_LINES:
+            ts = sup.mode_changes
+            out.write(f"[fly] mode changes: {len(ts)} in all, t = {ts[0]:.2f} to {ts[-1]:.2f} s "
+                      f"(the first {MODE_LINES} are shown)\n")
     return result
 
 

@@ -166,8 +166,10 @@ def loop_figures(bag_path: Path) -> LoopFigures:
     commands_missing = int(len(seq) - 1 - len(lat))
     timeouts = None
     diag = bag.topics.get("/diagnostics")
-    if diag is not None and diag.messages:
-        for kv in diag.messages[-1].status[0].values:
+    sim_reports = [st for m in (diag.messages if diag is not None else []) for st in m.status
+                   if st.name.startswith("lander_sim")]  # the autopilot reports there too
+    if sim_reports:
+        for kv in sim_reports[-1].values:
             if kv.key == "lockstep_timeouts":
                 timeouts = int(kv.value)
     # RTF over the stepping part: from the first state at t > 0 (the reset's state 1 at t = 0 waits for the resume).

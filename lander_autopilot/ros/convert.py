@@ -7,7 +7,8 @@
   Time is the state's stamp (sim time) in seconds.
 * :class:`lander_autopilot.controllers.ControlOutput` -> ``ThrottleCommand`` answering one state
   (``state_sequence`` and ``header.stamp`` copied from it: lockstep and latency measurement).
-* ``AutopilotStatus`` and ``FlightEvent`` filled from the node's bookkeeping.
+* ``AutopilotStatus`` and ``FlightEvent`` filled from the node's bookkeeping; the
+  ``DiagnosticArray`` of ``/diagnostics`` from :mod:`.loop_stats`' ``(level, message, values)``.
 * ``geometry_msgs/Vector3Stamped`` on ``/lander/demand_velocity`` -> the demand horizontal velocity
   ``(east, north)`` [m/s] in the local ENU frame ``local_enu``
   (:mod:`lander_autopilot.design.translational`).
@@ -128,3 +129,19 @@ def fill_demand_status(status, demand, mode: str) -> None:
     ve, vn = demand.velocity if demand.velocity is not None else (0.0, 0.0)
     status.demand_velocity.x, status.demand_velocity.y, status.demand_velocity.z = float(ve), float(vn), 0.0
     status.mode = mode
+
+
+def fill_diagnostics(array, *, stamp, hardware_id: str, statuses) -> None:
+    """Fill a ``diagnostic_msgs/DiagnosticArray``: one ``DiagnosticStatus`` per
+    ``(name, (level, message, values))`` of ``statuses`` (:mod:`lander_autopilot.ros.loop_stats`)."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    array.header.stamp = stamp
+    out = []
+    for name, (level, message, values) in statuses:
+        st = DiagnosticStatus()
+        st.level = bytes([level]) if isinstance(st.level, bytes) else level
+        st.name, st.message, st.hardware_id = name, message, hardware_id
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        out.append(st)
+    array.status = out

@@ -27,7 +27,8 @@ def test_a_swap_to_a_designed_controller_keeps_lockstep_fed_and_falls_on_one_bou
     g = rig.ground
     diags: list[dict[str, str]] = []
     g.node.create_subscription(DiagnosticArray, "/diagnostics",
-                               lambda m: diags.extend({kv.key: kv.value for kv in s.values} for s in m.status), 100)
+                               lambda m: diags.extend({kv.key: kv.value for kv in s.values} for s in m.status
+                                                      if s.name.startswith("lander_sim")), 100)
     wait_for_graph(g, subscribers={"/lander/state": 2, "/lander/throttle": 2},
                    publishers={"/lander/throttle": 1, "/lander/state": 1})
     g.wait_for(g.switch.service_is_ready, START_TIMEOUT, "autopilot's switch service")

@@ -57,7 +57,11 @@ def read_span(bag: Path) -> Span:
     for m in read_ros2_messages(str(files[0])):
         topic, msg = m.channel.topic, m.ros_msg
         assert msg is not None, f"{topic}: not decoded"
-        counts[topic] += 1
+        if topic == "/diagnostics" and not any(st.name.startswith("lander_sim") for st in msg.status):
+            # The autopilot's reports (docs/autopilot_node.md): the sim's FLIGHT_ENDED counts its own only.
+            counts["/diagnostics (others)"] += 1
+        else:
+            counts[topic] += 1
         if topic == "/clock":
             stamps[topic].append(_t(msg.clock))
         elif topic == "/diagnostics":

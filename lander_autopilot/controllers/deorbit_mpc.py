@@ -10,9 +10,10 @@ would start braking under the open chute) this law
    z = altitude; thrust, fuel flow and tilt limit of the vehicle; the open chute's and the body's
    drag) and
 2. flies it with :class:`lander_autopilot.guidance.descent_mpc.DescentMpc`: each control period a
-   cone-constrained QP (cvxpy + Clarabel) over a short horizon tracks the minimum-fuel reference
+   second-order-cone programme (cvxpy + Clarabel) re-plans the minimum-fuel descent from the measured
+   state to rest at the demand by the end time of the minimum-fuel reference
    (:func:`lander_autopilot.guidance.fuel_optimal.solve`, lossless convexification with the drag
-   re-linearised) within the throttle limit, the tilt limit and a glide slope.
+   re-linearised), within the throttle limit, the tilt limit and a glide slope.
 
 The thrust vector the QP asks for becomes a thrust-axis attitude (the quaternion attitude law,
 attitude priority) and a collective throttle ``|T| / T_axial``. The phase ends as the scheduled
@@ -78,17 +79,17 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
 class DeorbitMpcController(DeorbitController):
     """:class:`.deorbit.DeorbitController` with MPC in the powered descent (module docstring).
 
-    Extra parameters (SI): ``horizon_steps``, ``mpc_step`` [s] (prediction step), ``max_tilt`` [rad]
+    Extra parameters (SI): ``horizon_steps``, ``min_time_to_go`` [s] (shortest horizon), ``max_tilt`` [rad]
     (tilt limit of the thrust in the QP), ``glide_slope`` [rad] (0: none; the hover has no landing
     spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference);
     ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
-    the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so the reference flown at
-    97 % thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
+    the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so that the plan at
+    99 % of the thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
     """
 
     name: ClassVar[str] = "deorbit-mpc"
 
-    def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, mpc_step: float = 0.5, max_tilt: float = 0.7,
+    def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
                  glide_slope: float = 0.0, reference_steps: int = 20, slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
@@ -109,7 +110,7 @@ class DeorbitMpcController(DeorbitController):
         if not (0.0 <= float(glide_slope) < math.pi / 2):
             raise ControllerError(f"glide_slope: expected a value in [0, pi/2) rad, got {glide_slope!r}")
         self.glide_slope = float(glide_slope)
-        self.settings = MpcSettings(horizon_steps=horizon_steps, step=positive_param("mpc_step", mpc_step),
+        self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
                                     reference_steps=reference_steps)
         self.axial = vertical_thrust(vehicle)
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction

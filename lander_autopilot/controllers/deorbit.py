@@ -262,6 +262,8 @@ class DeorbitController(Controller):
         self._entry_brake = False
         self.descent.drag_scale = 1.0
         self._last_climb: tuple[float, float] | None = None
+        self._last_coast: tuple[float, np.ndarray] | None = None  # (t, v_W) at the last entry period
+        self._coast_thrust = math.inf  # axial thrust [N] commanded over the period since
 
     def _to(self, t: float, phase: Phase, why: str) -> None:
         self.log.transitions.append((t, self.phase, phase, why))
@@ -336,10 +338,12 @@ class DeorbitController(Controller):
         descent law's chute request alone. Its throttles would not be flown here, so its whole update
         (ground-speed mixing, failure watch: ~0.4 ms, 18,000 times from scenario 0's orbit) is not run
         until the chute is out; it then starts from the chute's instant."""
+        self._learn_density(t, state)
         request = self.descent._chute_request(self._altitude(state), self._climb_rate(state),
                                               float(np.linalg.norm(state.v_W)))
         if request is None:
             u = saturate(self._entry_command(t, state))
+            self._coast_thrust = self.descent.T_v * float(np.mean(u.throttles))
             return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value)
         self._open_chute(t)
         u = saturate(self._retrograde(state, 0.0))
@@ -366,6 +370,32 @@ class DeorbitController(Controller):
         speed2 = float(state.v_W @ state.v_W)
         drag = self._drag_k * self.descent.drag_scale * MARS_ATMOSPHERE.density(h) * speed2
         return drag / mass - g > d.braking_acceleration(mass, g)
+
+    def _learn_density(self, t: float, state: StateView) -> None:
+        """Entry, chute packed, coasting: the air's density against the model's, for the chute.
+
+        Over a period ``v' = g_W + a_D + a_T``, ``|a_D| = k_body rho |v|^2 / m``, the thrust axis held
+        retrograde, so ``|a_D| ~ |dv/dt - g_W| - T / m`` with ``T`` the axial thrust the attitude hold
+        commanded (a few % of the maximum; periods with more, a braking entry, are skipped). The
+        measured over the model's gives ``rho_true / rho_model`` (filtered, 2 s; only where the
+        model's drag exceeds 0.5 m/s^2, so that the difference of velocities is not noise). The chute's
+        predicted drag uses it (:attr:`LandingController.density_scale`): with +30 % of air the canopy,
+        opened at 0.9 of its modelled drag limit, was torn off (a dispersed 200 km flight)."""
+        prev, self._last_coast = self._last_coast, (t, np.array(state.v_W, float))
+        thrust, self._coast_thrust = self._coast_thrust, math.inf
+        if prev is None or t <= prev[0] or thrust > 0.05 * self.descent.T_v:
+            return
+        h = self._altitude(state)
+        rn = float(np.linalg.norm(state.r_W))
+        speed2 = float(state.v_W @ state.v_W)
+        mass = self.vehicle.mass(state.fuel)
+        model = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA * MARS_ATMOSPHERE.density(h) * speed2 / mass
+        if model < 0.5:
+            return
+        measured = float(np.linalg.norm((state.v_W - prev[1]) / (t - prev[0]) + c.GM_MARS * state.r_W / rn**3)) - thrust / mass
+        ratio = min(max(measured / model, 0.3), 3.0)
+        d = self.descent
+        d.density_scale += min((t - prev[0]) / 2.0, 1.0) * (ratio - d.density_scale)
 
     def _learn_drag(self, t: float, state: StateView) -> None:
         """Under the open chute with the thrusters off: the drag the air really gives against the model's.

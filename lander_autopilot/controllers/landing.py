@@ -151,6 +151,9 @@ class LandingController(GroundSpeedController):
         self.mode = MODES[0]
         self._chute_requested = False
         self._unreachable_raised = False
+        # true density / modelled density, where an entry law has measured it (DeorbitController); the
+        # chute's predicted drag uses it: +30 % of air tore the canopy off at 0.9 of the modelled limit
+        self.density_scale = 1.0
         self._mass = self.vehicle.mass(self.vehicle.fuel_capacity)
         if hasattr(self, "failure_detector"):
             self.failure_detector.reset()
@@ -247,7 +250,7 @@ class LandingController(GroundSpeedController):
             return None
         if hd > -1.0 or h - self.half_size < self.chute_min_altitude or h >= c.EXOSPHERE_ALTITUDE:
             return None
-        drag = self._chute_k * MARS_ATMOSPHERE.density(h) * speed * speed
+        drag = self._chute_k * self.density_scale * MARS_ATMOSPHERE.density(h) * speed * speed
         if drag > self.chute_margin * c.PARACHUTE_MAX_DRAG or speed > self.chute_margin * c.PARACHUTE_MAX_SPEED:
             return None
         self._chute_requested = True

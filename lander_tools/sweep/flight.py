@@ -147,6 +147,7 @@ def fly_case(
     # Hover-hold sweeps stop once the hover has been held (metrics.HoverHold, the one definition).
     hold = HoverHold(spec.end.hover_hold, spec.end.hover_band, spec.end.hover_speed) if spec.end.hover_hold > 0 else None
     mode_fuel: dict[str, float] = {}
+    handover: tuple[np.ndarray, np.ndarray, float, bool] | None = None  # r_W, v_W, fuel, chute open
     compute = 0.0
     for k in range(n_ctrl + 1):
         st = sim.state()
@@ -172,6 +173,8 @@ def fly_case(
         compute += time.process_time() - c0
         if out.mode is not None and out.mode not in mode_fuel:
             mode_fuel[out.mode] = float(st.fuel)
+            if out.mode == "powered-descent":
+                handover = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), _chute_open(sim))
         _act_on_requests(sim, out)
         sat_steps += bool(out.saturated)
         sim.set_throttles(out.throttles)
@@ -185,11 +188,15 @@ def fly_case(
             touchdown_speed, touchdown = _touchdown_speed(sim, v_before)
 
     fuel_end = float(sim.state().fuel) if terminal != "diverged" else math.nan
+    optimum = math.nan
+    if handover is not None and "hover" in mode_fuel and ({"powered_optimum", "fuel_ratio"} & set(spec.metrics)):
+        optimum = powered_optimum(sim, handover, h_after)
     samples = Samples(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel0, fuel_end=fuel_end, saturated_updates=sat_steps, period=period,
         touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change, touchdown=touchdown,
         speed=np.asarray(speeds), mode_fuel=mode_fuel, compute_time=compute, diagnostics=dict(ctrl.diagnostics()),
+        powered_optimum=optimum,
     )
     row = make_row(spec, controller_index, index, case, samples)
     traj = None
@@ -200,6 +207,30 @@ def fly_case(
             body_rate=samples.body_rate[:m], throttles=np.asarray(thr_log).reshape(m, -1),
         )
     return FlightResult(row, traj)
+
+
+def _chute_open(sim: Any) -> bool:
+    chute = getattr(sim, "parachute", None)
+    return chute is not None and getattr(chute.status, "name", "") == "DEPLOYED"
+
+
+def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float) -> float:
+    """The issue-14 yardstick of a flight: the minimum fuel [kg] from its handover state (world frame
+    ``r_W``, ``v_W``, fuel, chute open) to rest at ``demand_altitude`` [m], with the flown vehicle (its
+    thrust and mass dispersions) and the flown atmosphere's surface density; wind is not in the
+    point-mass model. 30 nodes, final time to 1e-3 s (the fuel agrees with 60 nodes to ~1e-6 from the
+    common handover case, bench/deorbit_fuel.py uses 60). NaN when the convex problem is infeasible."""
+    from lander_autopilot.controllers.deorbit_mpc import handover_problem
+    from lander_autopilot.guidance.fuel_optimal import GuidanceError, solve
+
+    r_W, v_W, fuel, chute = handover
+    atmosphere = sim.dynamics.atmosphere
+    kwargs = {} if atmosphere is None else {"surface_density": float(atmosphere.surface_density)}
+    problem, _frame = handover_problem(sim.scene.vehicle, r_W, v_W, fuel, demand_altitude, chute_open=chute, **kwargs)
+    try:
+        return float(solve(problem, steps=30, t_tol=1e-3).fuel)
+    except GuidanceError:
+        return math.nan
 
 
 def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samples: Samples) -> dict[str, Any]:

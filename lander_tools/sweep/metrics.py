@@ -14,6 +14,8 @@ definitions (``spec.METRICS``):
   ``|v_W| <= end.hover_speed`` lasting ``end.hover_hold``; the loop stops at the run's last instant;
 * ``powered_fuel``: the fuel at the first instant the controller reported the mode
   ``powered-descent`` minus that at its first ``hover`` (the state each answer was computed from);
+* ``powered_optimum``, ``fuel_ratio``: the minimum fuel from the state at that first ``powered-descent``
+  (core-only loop: :func:`lander_tools.sweep.flight.powered_optimum`), and ``powered_fuel`` over it;
 * ``compute_time``, ``mpc_solve_time_*``: measured by the loop, carried as they are (not deterministic).
 """
 from __future__ import annotations
@@ -61,6 +63,8 @@ class Samples:
     compute_time: float = math.nan
     #: The controller's ``diagnostics()`` after the flight (e.g. ``mpc_solve_time_p99`` [s]).
     diagnostics: dict[str, float] | None = None
+    #: Minimum fuel [kg] from the state at the first ``powered-descent`` to rest at the demand (NaN: not solved).
+    powered_optimum: float = math.nan
 
 
 class HoverHold:
@@ -141,6 +145,8 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         success = outcome == "hovered"
     mode_fuel = s.mode_fuel or {}
     diag = s.diagnostics or {}
+    powered = (mode_fuel["powered-descent"] - mode_fuel["hover"]
+               if "powered-descent" in mode_fuel and "hover" in mode_fuel else math.nan)
     metrics = {
         "touchdown_speed": s.touchdown_speed,
         "hover_error": hover,
@@ -156,8 +162,9 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "touchdown_tilt": td_tilt,
         "hover_time": hover_time,
         "fuel_left": s.fuel_end,
-        "powered_fuel": (mode_fuel["powered-descent"] - mode_fuel["hover"]
-                         if "powered-descent" in mode_fuel and "hover" in mode_fuel else math.nan),
+        "powered_fuel": powered,
+        "powered_optimum": s.powered_optimum,
+        "fuel_ratio": powered / s.powered_optimum,
         "compute_time": s.compute_time,
         "mpc_solve_time_p99": float(diag.get("mpc_solve_time_p99", math.nan)),
         "mpc_solve_time_median": float(diag.get("mpc_solve_time_median", math.nan)),

@@ -29,7 +29,7 @@ from lander_tools.sweep.case_scene import NotRepresentable, nominal_scene, write
 from lander_tools.sweep.dispersion import draw_case
 from lander_tools.sweep.flight import control_period, demand_schedule, make_row
 from lander_tools.sweep.metrics import HoverHold, Samples, altitude_and_tilt
-from lander_tools.sweep.spec import NONDETERMINISTIC_METRICS, SweepSpec
+from lander_tools.sweep.spec import CORE_ONLY_METRICS, NONDETERMINISTIC_METRICS, SweepSpec
 
 __all__ = ["NotRepresentable", "RosCheck", "plan_for_case", "row_from_bag", "scene_file_for_case", "through_ros"]
 
@@ -212,13 +212,13 @@ class RosCheck:
 def compare_rows(core: dict[str, Any], ros: dict[str, Any], metrics: tuple[str, ...], rtol: float = RTOL) -> list[str]:
     """Differences between a core-only and a through-ROS row (outcome, then each metric except the
     measured ones, :data:`~lander_tools.sweep.spec.NONDETERMINISTIC_METRICS`: compute time is not
-    a property of the flight, and a bag has none)."""
+    a property of the flight, and a bag has none; and the core-only ones, ``CORE_ONLY_METRICS``)."""
     where = f"flight {core['index']} ({core['controller']})"
     out = []
     if core["outcome"] != ros["outcome"]:
         out.append(f"{where}: outcome core-only {core['outcome']!r}, through ROS {ros['outcome']!r}")
     for m in metrics:
-        if m in NONDETERMINISTIC_METRICS:
+        if m in NONDETERMINISTIC_METRICS or m in CORE_ONLY_METRICS:
             continue
         a, b = float(core[m]), float(ros[m])
         if math.isnan(a) and math.isnan(b):

@@ -206,6 +206,10 @@ METRICS: dict[str, str] = {
     "fuel_left": "fuel in the tank at the end of the flight [kg]",
     "powered_fuel": "fuel burnt from the controller's first powered-descent mode to its first hover mode [kg] "
                     "(NaN when either is absent)",
+    "powered_optimum": "minimum fuel from the state at the first powered-descent mode to rest at the demand, "
+                       "convex (lossless convexification, the flown vehicle and atmosphere) [kg] (core-only; NaN "
+                       "without both modes)",
+    "fuel_ratio": "powered_fuel / powered_optimum [-] (core-only; NaN without both)",
     "compute_time": "CPU time in the controller's update calls over the flight, time.process_time [s] "
                     "(not deterministic; NaN on the batched path)",
     "mpc_solve_time_p99": "99th percentile of the MPC's solve times, from controller.diagnostics() [s] "
@@ -221,6 +225,10 @@ DEFAULT_METRICS: tuple[str, ...] = tuple(METRICS)[:tuple(METRICS).index("hover_t
 #: Metrics that are measured, not computed: they differ from run to run of the same flight, so every
 #: determinism check (replay, parallel vs serial, batched vs per-flight, through ROS) leaves them out.
 NONDETERMINISTIC_METRICS: tuple[str, ...] = ("compute_time", "mpc_solve_time_p99", "mpc_solve_time_median")
+
+#: Metrics only the core-only loop computes (a convex solve from the simulator's own state at the
+#: handover): a bag's row has NaN, so the through-ROS comparison leaves them out.
+CORE_ONLY_METRICS: tuple[str, ...] = ("powered_optimum", "fuel_ratio")
 
 
 def metric_unit(metric: str) -> str:

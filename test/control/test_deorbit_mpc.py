@@ -106,6 +106,8 @@ def test_bad_mpc_parameters_name_the_key():
         make_controller("deorbit-mpc", sc.vehicle, horizon_steps=1)
     with pytest.raises(ControllerError, match="max_tilt"):
         make_controller("deorbit-mpc", sc.vehicle, max_tilt=2.0)
+    with pytest.raises(ControllerError, match="min_time_to_go"):
+        make_controller("deorbit-mpc", sc.vehicle, min_time_to_go=0.0)
     with pytest.raises(ControllerError, match="unknown parameter"):
         make_controller("deorbit-mpc", sc.vehicle, horizon=3)
     with pytest.raises(ControllerError, match="chute_margin"):

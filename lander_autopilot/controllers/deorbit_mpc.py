@@ -52,7 +52,8 @@ def local_frame(r_W: np.ndarray) -> np.ndarray:
 
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
                      max_tilt: float = 0.7, chute_open: bool = True,
-                     surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY) -> tuple[DescentProblem, np.ndarray]:
+                     surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY,
+                     wind_W: np.ndarray | None = None) -> tuple[DescentProblem, np.ndarray]:
     """The minimum-fuel problem from a handover state to rest at ``demand_altitude`` [m], and its frame.
 
     Local frame: ENU at ``r_W`` (rows of the returned 3x3 ``L``), origin on the surface below,
@@ -60,7 +61,8 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     out along body z (``T_axial``, the canted layout's axial share); ``alpha = mdot_max / T_axial``.
     Gravity at the handover altitude (uniform over a powered phase of ~1 km). Drag: the sphere's
     and, with ``chute_open``, the parachute's (``1/2 Cd A`` each, exponential atmosphere of
-    ``surface_density`` [kg/m^3]: the nominal one, or a dispersed flight's true one for its yardstick).
+    ``surface_density`` [kg/m^3]: the nominal one, or a dispersed flight's true one for its yardstick;
+    ``wind_W`` [m/s, world] a steady wind, none by default).
     """
     L = local_frame(r_W)
     h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
@@ -70,7 +72,8 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     k = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA
     if chute_open:
         k += 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
-    drag = DragModel(k, surface_density, c.ATMOSPHERE_SCALE_HEIGHT)
+    wind_L = (0.0, 0.0, 0.0) if wind_W is None else tuple(float(x) for x in L @ np.asarray(wind_W, float))
+    drag = DragModel(k, surface_density, c.ATMOSPHERE_SCALE_HEIGHT, wind_L)
     r = c.MARS_RADIUS + h
     problem = DescentProblem(position_L=np.array([0.0, 0.0, h]), velocity_L=L @ np.asarray(v_W, float),
                              mass=vehicle.mass(fuel), gravity=c.GM_MARS / (r * r), limits=limits,

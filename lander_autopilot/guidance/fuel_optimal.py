@@ -80,15 +80,17 @@ class DescentLimits:
 
 @dataclass(frozen=True)
 class DragModel:
-    """Aerodynamic drag of the point mass: ``F = -k rho(h) |v| v`` (SI units).
+    """Aerodynamic drag of the point mass: ``F = -k rho(h) |v - w| (v - w)`` (SI units).
 
     k : ``sum 1/2 Cd A`` over the bodies that pull (sphere, open chute) [m^2].
     surface_density : [kg/m^3]; scale_height : [m] (exponential atmosphere, altitude = local z).
+    wind_L : steady wind ``w`` in the local frame [m/s] (none by default).
     """
 
     k: float
     surface_density: float
     scale_height: float
+    wind_L: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not (self.k >= 0 and self.surface_density >= 0 and self.scale_height > 0):
@@ -97,13 +99,13 @@ class DragModel:
     def acceleration(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: np.ndarray) -> np.ndarray:
         """``a_D`` at each row of ``(position, velocity, mass)`` [m/s^2]."""
         rho = self.surface_density * np.exp(-np.asarray(position_L)[:, 2] / self.scale_height)
-        v = np.asarray(velocity_L)
+        v = np.asarray(velocity_L) - np.asarray(self.wind_L)  # airspeed
         return -(self.k * rho / mass * np.linalg.norm(v, axis=1))[:, None] * v
 
     def jacobian(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: np.ndarray) -> np.ndarray:
         """``d a_D / d v`` at each row, shape (n, 3, 3) [1/s]."""
         rho = self.surface_density * np.exp(-np.asarray(position_L)[:, 2] / self.scale_height)
-        v = np.asarray(velocity_L)
+        v = np.asarray(velocity_L) - np.asarray(self.wind_L)
         s = np.maximum(np.linalg.norm(v, axis=1), 1e-9)
         return -(self.k * rho / mass)[:, None, None] * (s[:, None, None] * np.eye(3)
                                                        + v[:, :, None] * v[:, None, :] / s[:, None, None])

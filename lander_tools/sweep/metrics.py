@@ -15,7 +15,10 @@ definitions (``spec.METRICS``):
 * ``powered_fuel``: the fuel at the first instant the controller reported the mode
   ``powered-descent`` minus that at its first ``hover`` (the state each answer was computed from);
 * ``powered_optimum``, ``fuel_ratio``: the minimum fuel from the state at that first ``powered-descent``
-  (core-only loop: :func:`lander_tools.sweep.flight.powered_optimum`), and ``powered_fuel`` over it;
+  to rest at the demand (core-only loop: :func:`lander_tools.sweep.flight.powered_optimum`), and the
+  fuel flown from there to the first instant within ``end.hover_band`` and ``end.hover_speed`` of the
+  hover over it (the optimum's own end: a law that hands over below the band, or too fast, has
+  the hover law's climb back and braking counted, which ``powered_fuel`` leaves out);
 * ``compute_time``, ``mpc_solve_time_*``: measured by the loop, carried as they are (not deterministic).
 """
 from __future__ import annotations
@@ -65,6 +68,9 @@ class Samples:
     diagnostics: dict[str, float] | None = None
     #: Minimum fuel [kg] from the state at the first ``powered-descent`` to rest at the demand (NaN: not solved).
     powered_optimum: float = math.nan
+    #: Fuel [kg] at the first instant after that within ``end.hover_band`` and ``end.hover_speed`` of the
+    #: hover (the optimum's end, at rest at the demand, to the band's tolerance); NaN: never.
+    band_fuel: float = math.nan
 
 
 class HoverHold:
@@ -164,7 +170,7 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "fuel_left": s.fuel_end,
         "powered_fuel": powered,
         "powered_optimum": s.powered_optimum,
-        "fuel_ratio": powered / s.powered_optimum,
+        "fuel_ratio": (mode_fuel.get("powered-descent", math.nan) - s.band_fuel) / s.powered_optimum,
         "compute_time": s.compute_time,
         "mpc_solve_time_p99": float(diag.get("mpc_solve_time_p99", math.nan)),
         "mpc_solve_time_median": float(diag.get("mpc_solve_time_median", math.nan)),

@@ -1039,7 +1039,12 @@ def stop_nodes(f: LaunchedFlight) -> None:
         def delivered() -> bool:
             # In lockstep the autopilot answers the end state too: that answer belongs to the flight.
             answered = not sup.lockstep or sup.last_answer >= published["/lander/state"]
-            return answered and sup.received.get("/lander/state", 0) >= published["/lander/state"] and all(
+            # The states counted where they are kept (the bag): this node's own watch subscription
+            # may lose some on a loaded machine (it is the slower reader), and waiting for them here
+            # only ran out the delivery timeout (10 s of "state lost" from the autopilot).
+            states = rec.counts.get("/lander/state", 0) if rec is not None and rec.wanted("/lander/state") \
+                else sup.received.get("/lander/state", 0)
+            return answered and states >= published["/lander/state"] and all(
                 rec.counts.get(t, 0) >= n for t, n in wanted.items())
 
         deadline = time.monotonic() + DELIVERY_TIMEOUT
@@ -1056,8 +1061,10 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
 
     * the sim's own outputs: its FLIGHT_ENDED counts, exactly (``/lander/events`` too when the sim
       is its only publisher);
-    * ``/lander/throttle``: exactly what this launcher's own subscription received since the reset
-      (nobody commands before the first state);
+    * ``/lander/throttle``: in lockstep exactly one answer per state (the sim's ``/lander/state``
+      count: the autopilot answers every lockstep state once, the end state too); otherwise at least
+      what this launcher's own subscription received since the reset (nobody commands before the
+      first state; that subscription can lose messages on a loaded machine, so it is no exact count);
     * ``/autopilot/status`` and, with an autopilot, ``/lander/events``: at least that (the
       autopilot may report before the flight, e.g. its start-up status, which the recorder may
       hold too);
@@ -1069,7 +1076,10 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
     ref: dict[str, tuple[int, bool]] = {}
     if sup.flight_end is not None:
         ref.update({t: (n, True) for t, n in sup.flight_end.counts.items()})
-    ref["/lander/throttle"] = (sup.received.get("/lander/throttle", 0), True)
+    if sup.lockstep and sup.controller is not None and sup.flight_end is not None:
+        ref["/lander/throttle"] = (sup.flight_end.counts.get("/lander/state", 0), True)
+    else:
+        ref["/lander/throttle"] = (sup.received.get("/lander/throttle", 0), False)
     if sup.controller is not None:
         ref["/autopilot/status"] = (sup.received.get("/autopilot/status", 0), False)
         ref["/lander/events"] = (max(ref.get("/lander/events", (0, False))[0], sup.received.get("/lander/events", 0)),
@@ -1141,7 +1151,9 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         assert sup is not None and sup.flight_end is not None
         stop_nodes(f)
         end = sup.flight_end
-        result = FlightResult(end.reason, EXIT_CRASHED if end.reason == "crashed" else EXIT_OK, end.t, sup.states)
+        # the sim's count of the states it published (this node's watch may have lost some under load)
+        states = end.counts.get("/lander/state", sup.states)
+        result = FlightResult(end.reason, EXIT_CRASHED if end.reason == "crashed" else EXIT_OK, end.t, states)
     except _Interrupted:
         result = _failed(f, "interrupted", EXIT_INTERRUPTED, f"stopped by {f.stop_reason[0] if f.stop_reason else 'signal'}")
     except _NodeDied as exc:

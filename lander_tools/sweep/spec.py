@@ -210,7 +210,7 @@ METRICS: dict[str, str] = {
                        "convex (lossless convexification, the flown vehicle and atmosphere) [kg] (core-only; NaN "
                        "without both modes)",
     "fuel_ratio": "fuel from the first powered-descent to the first instant within end.hover_band and "
-                  "end.hover_speed, over powered_optimum [-] (core-only; NaN without both)",
+                  "end.hover_speed, over powered_optimum [x optimum] (core-only; NaN without both)",
     "compute_time": "CPU time in the controller's update calls over the flight, time.process_time [s] "
                     "(not deterministic; NaN on the batched path)",
     "mpc_solve_time_p99": "99th percentile of the MPC's solve times, from controller.diagnostics() [s] "

@@ -53,7 +53,7 @@ def local_frame(r_W: np.ndarray) -> np.ndarray:
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
                      max_tilt: float = 0.7, chute_open: bool = True,
                      surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY,
-                     wind_W: np.ndarray | None = None) -> tuple[DescentProblem, np.ndarray]:
+                     wind_W: np.ndarray | None = None, drag_scale: float = 1.0) -> tuple[DescentProblem, np.ndarray]:
     """The minimum-fuel problem from a handover state to rest at ``demand_altitude`` [m], and its frame.
 
     Local frame: ENU at ``r_W`` (rows of the returned 3x3 ``L``), origin on the surface below,
@@ -62,7 +62,8 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     Gravity at the handover altitude (uniform over a powered phase of ~1 km). Drag: the sphere's
     and, with ``chute_open``, the parachute's (``1/2 Cd A`` each, exponential atmosphere of
     ``surface_density`` [kg/m^3]: the nominal one, or a dispersed flight's true one for its yardstick;
-    ``wind_W`` [m/s, world] a steady wind, none by default).
+    ``wind_W`` [m/s, world] a steady wind, none by default; ``drag_scale`` multiplies the modelled
+    drag: the flown law's measured / modelled drag under the chute).
     """
     L = local_frame(r_W)
     h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
@@ -73,7 +74,7 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     if chute_open:
         k += 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
     wind_L = (0.0, 0.0, 0.0) if wind_W is None else tuple(float(x) for x in L @ np.asarray(wind_W, float))
-    drag = DragModel(k, surface_density, c.ATMOSPHERE_SCALE_HEIGHT, wind_L)
+    drag = DragModel(k * drag_scale, surface_density, c.ATMOSPHERE_SCALE_HEIGHT, wind_L)
     r = c.MARS_RADIUS + h
     problem = DescentProblem(position_L=np.array([0.0, 0.0, h]), velocity_L=L @ np.asarray(v_W, float),
                              mass=vehicle.mass(fuel), gravity=c.GM_MARS / (r * r), limits=limits,
@@ -86,7 +87,10 @@ class DeorbitMpcController(DeorbitController):
 
     Extra parameters (SI): ``horizon_steps``, ``min_time_to_go`` [s] (shortest horizon), ``max_tilt`` [rad]
     (tilt limit of the thrust in the QP), ``glide_slope`` [rad] (0: none; the hover has no landing
-    spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference);
+    spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference),
+    ``reference_thrust`` (fraction of the thrust the reference is solved at, which fixes the end
+    time: 0.95, so the braking starts with 4 % in hand for what the attitude law takes under the
+    canopy in a wind; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md);
     ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
     the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so that the plan at
     99 % of the thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
@@ -94,8 +98,16 @@ class DeorbitMpcController(DeorbitController):
 
     name: ClassVar[str] = "deorbit-mpc"
 
+    @staticmethod
+    def _fraction(name: str, value: object) -> float:
+        x = positive_param(name, value)
+        if x > 1.0:
+            raise ControllerError(f"{name}: expected a fraction in (0, 1], got {value!r}")
+        return x
+
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
-                 glide_slope: float = 0.0, reference_steps: int = 20, slew_time: float = 60.0,
+                 glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.95,
+                 slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
                  predict_every: float = 1.0, brake_fraction: float = 0.5, attitude_poles: object = (-1.0,) * 6,
@@ -116,7 +128,8 @@ class DeorbitMpcController(DeorbitController):
             raise ControllerError(f"glide_slope: expected a value in [0, pi/2) rad, got {glide_slope!r}")
         self.glide_slope = float(glide_slope)
         self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
-                                    reference_steps=reference_steps)
+                                    reference_steps=reference_steps,
+                                    reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust))
         self.axial = vertical_thrust(vehicle)
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
@@ -158,8 +171,14 @@ class DeorbitMpcController(DeorbitController):
     def _start(self, t: float, state: StateView, demand: Demand) -> None:
         import time
 
+        # Under the canopy the lander has drifted with the air: its horizontal velocity is the plan's
+        # wind (drag acts on the airspeed; with none, the plan counted on the chute to take the drift
+        # out for free and left it to the last second, 4-5 m/s at the hover in a 5 m/s wind).
+        up = state.r_W / float(np.linalg.norm(state.r_W))
+        wind_W = state.v_W - float(state.v_W @ up) * up if self._chute_open else None
         problem, L = handover_problem(self.vehicle, state.r_W, state.v_W, state.fuel, demand.altitude,
-                                      max_tilt=self.max_tilt, chute_open=self._chute_open)
+                                      max_tilt=self.max_tilt, chute_open=self._chute_open, wind_W=wind_W,
+                                      drag_scale=min(self.descent.drag_scale, 1.0))
         limits = DescentLimits(rho_max=problem.limits.rho_max, alpha=problem.limits.alpha,
                                dry_mass=problem.limits.dry_mass, max_tilt=self.max_tilt, glide_slope=self.glide_slope)
         t0 = time.perf_counter()

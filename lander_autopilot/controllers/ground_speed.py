@@ -107,6 +107,8 @@ class GroundSpeedController(SumController):
         self.tilt_clipped = False
         self.lift_force = 0.0
         self.thrust_axis_W = np.zeros(3)
+        #: World vector the demand body x is kept nearest to; None: east (:meth:`heading_axis`).
+        self.heading_W: np.ndarray | None = None
 
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
@@ -117,6 +119,11 @@ class GroundSpeedController(SumController):
     def tilt_limit(self, h: float) -> float:
         """Largest tilt of the thrust from the vertical the outer loop may ask for [rad]."""
         return self.max_tilt
+
+    def horizontal_limit(self, h: float, lift: float) -> float:
+        """Largest horizontal thrust acceleration [m/s^2] the outer loop may ask for, at ``lift``
+        [m/s^2] along up: the tilt limit's, ``lift tan(tilt_limit(h))``."""
+        return lift * math.tan(self.tilt_limit(h))
 
     def holds_ground_speed(self) -> bool:
         """False while the law lets the horizontal motion be (the landing law's coast: there is no
@@ -145,7 +152,7 @@ class GroundSpeedController(SumController):
         # Tilt limit: |a_h| <= (g + a_U) tan(max tilt). a_up may be ~0 (coasting): keep a floor so
         # the demand direction stays defined.
         lift = max(a_up, 0.2 * GM_MARS / (r * r))
-        lim = lift * math.tan(self.tilt_limit(h))
+        lim = self.horizontal_limit(h, lift)
         n_h = math.hypot(float(a_h[0]), float(a_h[1]))
         clipped = n_h > lim
         if clipped:
@@ -175,8 +182,9 @@ class GroundSpeedController(SumController):
         return self.mix(t, state, inner)
 
     def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
-        """World vector the demand body x is kept nearest to: east (a subclass may give the heading up)."""
-        return L[0]
+        """World vector the demand body x is kept nearest to: ``heading_W`` if set, else east (a
+        subclass may give the heading up)."""
+        return L[0] if self.heading_W is None else self.heading_W
 
     def mix(self, t: float, state: StateView, inner: Demand) -> Mix:
         """Throttles from the collective and the attitude law (the summed law's mix, attitude priority)."""

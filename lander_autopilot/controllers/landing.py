@@ -94,6 +94,9 @@ class LandingController(GroundSpeedController):
     """
 
     name: ClassVar[str] = "landing"
+    #: Watch for a failed thruster (and probe the coast under the canopy for one). A subclass whose
+    #: flight the watch cannot read may switch it off (:class:`..deorbit.DescentToAltitude`).
+    detects_failures: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -264,7 +267,7 @@ class LandingController(GroundSpeedController):
     # --- thruster failure -----------------------------------------------------------------
 
     def _check_failure(self, t: float, state: StateView) -> None:
-        if self.allocation is not None:
+        if self.allocation is not None or not self.detects_failures:
             return
         dt = 0.0 if self._t_prev is None else t - self._t_prev
         if self._chute_requested and self.mode != "coast":
@@ -294,7 +297,7 @@ class LandingController(GroundSpeedController):
         """True while a probe burn is on (every ``probe_period`` s, ``probe_time`` s long): coasting
         under the canopy below ``probe_height`` with no failure known, the thrusters rest, so a dead
         one would stay unseen until the braking, too late to plan for the lift that is left."""
-        if (self.allocation is not None or not self._chute_requested or self.mode != "coast"
+        if (self.allocation is not None or not self.detects_failures or not self._chute_requested or self.mode != "coast"
                 or self._h_c > self.probe_height):
             self._probe_start = None
             return False
@@ -304,7 +307,7 @@ class LandingController(GroundSpeedController):
 
     def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
         if self.allocation is None:
-            return L[0]
+            return super().heading_axis(state, L)
         return quat_to_matrix(state.q)[0]  # yaw given up: keep the current heading
 
     # Spinning descent after a failure found under the canopy (module docstring, docs/control.md).

@@ -108,6 +108,9 @@ def test_bad_mpc_parameters_name_the_key():
         make_controller("deorbit-mpc", sc.vehicle, max_tilt=2.0)
     with pytest.raises(ControllerError, match="min_time_to_go"):
         make_controller("deorbit-mpc", sc.vehicle, min_time_to_go=0.0)
+    for bad in (0.0, 1.2):
+        with pytest.raises(ControllerError, match="reference_thrust"):
+            make_controller("deorbit-mpc", sc.vehicle, reference_thrust=bad)
     with pytest.raises(ControllerError, match="unknown parameter"):
         make_controller("deorbit-mpc", sc.vehicle, horizon=3)
     with pytest.raises(ControllerError, match="chute_margin"):

@@ -1,0 +1,66 @@
+"""A dispersed de-orbit flight in a 5.6 m/s wind (the 200 km sweep's case 88), core-only: what the
+descent law must not do under the canopy (issue 14's dispersed fuel).
+
+Before the fixes this flight declared thruster 0 dead 0.2 s after the chute opened (the canopy's
+torque in the wind, unexplained), flew the spinning three-thruster descent (9 rad/s of yaw),
+stopped the fall 132 m under the hover and used 3.7 x the optimum's fuel to the hover band; with
+the watch off it still turned its heading back to east as the braking began (0.9 rad/s of yaw,
+half of two thrusters for ~2 s) and stopped 18 m under.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lander_autopilot.controllers import Demand
+from lander_autopilot.controllers.deorbit import Phase
+from lander_autopilot.controllers.registry import make_controller
+from lander_sim.physics import constants as c
+from lander_sim.simulation import Simulation
+from lander_tools.sweep.case_scene import flown_scene, nominal_scene
+from lander_tools.sweep.dispersion import draw_case
+from lander_tools.sweep.flight import control_period
+from lander_tools.sweep.spec import load_spec
+
+SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
+
+
+@pytest.mark.slow  # ~2500 s of simulated flight, ~6 s
+def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
+    spec = load_spec(SPEC)
+    nominal = nominal_scene(spec)
+    case = draw_case(spec, 88, nominal.vehicle.n_thrusters)
+    assert float(np.linalg.norm(case.wind_mean_W)) > 5.0  # the case this test is about
+    ctrl = make_controller("deorbit", nominal.vehicle, **dict(spec.controllers[0].params))
+    sim = Simulation(flown_scene(spec, case))
+    n_sub, _ = control_period(spec, sim.dt)
+    demand = Demand(altitude=500.0)
+    yaw_rates: list[float] = []
+    heading_at_braking = None
+    while sim.t < 4000.0 and ctrl.phase is not Phase.HOVER:
+        s = sim.state()
+        out = ctrl.update(sim.t, s, demand)
+        if ctrl.phase is Phase.POWERED:
+            yaw_rates.append(abs(float(s.omega_B[2])))
+            if heading_at_braking is None and ctrl.descent.heading_W is not None:
+                heading_at_braking = ctrl.descent.heading_W.copy()
+        if any(r.kind == "deploy_parachute" for r in out.requests):
+            sim.deploy_parachute()
+        sim.set_throttles(out.throttles)
+        sim.step(n_sub)
+        sim.drain_events()
+        assert sim.phase.name == "FLYING", sim.phase
+    assert ctrl.phase is Phase.HOVER
+    # no false alarm under the canopy: all four thrusters stay in the allocation, no spin
+    assert ctrl.descent.allocation is None and ctrl.descent.spin is None
+    # the heading the braking began with is held (no yaw turn) and handed to the hover law
+    assert heading_at_braking is not None
+    np.testing.assert_array_equal(ctrl.hover.heading_W, heading_at_braking)
+    assert max(yaw_rates) < 0.1  # rad/s; 0.9 with the east heading, 9 with the false alarm
+    # the fall is stopped near the floor: within a period's braking at full thrust, not tens of metres under
+    s = sim.state()
+    h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
+    axial = ctrl.descent.T_v / nominal.vehicle.mass(s.fuel)
+    assert h > 500.0 - 0.5 * axial * 1.0**2, h  # ~4 m: a second of full-thrust deceleration

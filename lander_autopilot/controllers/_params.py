@@ -42,3 +42,13 @@ def positive_param(name: str, value: object) -> float:
     if not np.isfinite(v) or v <= 0.0:
         raise ControllerError(f"{name}: expected a positive number, got {value!r}")
     return v
+
+
+def non_negative_param(name: str, value: object) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]  # any object: float() itself is the check (caught below)
+    except (TypeError, ValueError):
+        raise ControllerError(f"{name}: expected a number >= 0, got {value!r}") from None
+    if not np.isfinite(v) or v < 0.0:
+        raise ControllerError(f"{name}: expected a number >= 0, got {value!r}")
+    return v

@@ -28,17 +28,22 @@ from typing import ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
+from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 from ..design.altitude import vertical_thrust
 from ..guidance.descent_mpc import DescentMpc, MpcSettings
 from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError
-from ._params import positive_param
+from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
 from .combined import mix_with_attitude_priority
 from .deorbit import DeorbitController, Phase, thrust_axis_attitude
+
+MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
+# s: the mean delay of that loop, p^2 / (s - p)^2, is 2 / |p|: the lag the QP plans the thrust axis with
+ATTITUDE_LAG = 2.0 / abs(MPC_ATTITUDE_POLE)
 
 
 def local_frame(r_W: np.ndarray) -> np.ndarray:
@@ -91,6 +96,9 @@ class DeorbitMpcController(DeorbitController):
     ``reference_thrust`` (fraction of the thrust the reference is solved at, which fixes the end
     time: 0.95, so the braking starts with 4 % in hand for what the attitude law takes under the
     canopy in a wind; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md);
+    ``attitude_lag`` [s] (how late the QP expects the thrust axis to follow its command; default
+    ``ATTITUDE_LAG``, the mean delay of the thrust axis's attitude loop: planned as instant, the QP's
+    late horizontal braking was flown ~1 s behind and the hover began with 0.5-1 m/s of drift);
     ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
     the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so that the plan at
     99 % of the thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
@@ -107,6 +115,7 @@ class DeorbitMpcController(DeorbitController):
 
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
                  glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.95,
+                 attitude_lag: float | None = None,
                  slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
@@ -129,11 +138,12 @@ class DeorbitMpcController(DeorbitController):
         self.glide_slope = float(glide_slope)
         self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
                                     reference_steps=reference_steps,
-                                    reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust))
+                                    reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust),
+                                    attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag))
         self.axial = vertical_thrust(vehicle)
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
-        self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(-2.0,) * 6)
+        self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(MPC_ATTITUDE_POLE,) * 6)
 
     def reset(self) -> None:
         super().reset()
@@ -160,7 +170,8 @@ class DeorbitMpcController(DeorbitController):
         d = L @ (state.r_W - r0)
         p_L = np.array([d[0], d[1], h])
         v_L = L @ state.v_W
-        T_L = self.mpc.command(t - self._t_handover, p_L, v_L, self.vehicle.mass(state.fuel))
+        T_L = self.mpc.command(t - self._t_handover, p_L, v_L, self.vehicle.mass(state.fuel),
+                               thrust_axis_L=L @ quat_to_matrix(state.q)[2])
         self.thrust_L = T_L  # the QP's thrust this period [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))

@@ -1,5 +1,5 @@
-"""A dispersed de-orbit flight in a 5.6 m/s wind (the 200 km sweep's case 88), core-only: what the
-descent law must not do under the canopy (issue 14's dispersed fuel).
+"""Dispersed de-orbit flights in a wind (the 200 km sweep's cases 88, 5.6 m/s, and 55, 4.4 m/s),
+core-only: what the descent laws must not do under the canopy (issue 14's dispersed fuel).
 
 Before the fixes this flight declared thruster 0 dead 0.2 s after the chute opened (the canopy's
 torque in the wind, unexplained), flew the spinning three-thruster descent (9 rad/s of yaw),
@@ -64,3 +64,51 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
     h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
     axial = ctrl.descent.T_v / nominal.vehicle.mass(s.fuel)
     assert h > 500.0 - 0.5 * axial * 1.0**2, h  # ~4 m: a second of full-thrust deceleration
+
+
+def _fly_mpc_to_the_band(case_index: int, **params: object) -> tuple[float, float]:
+    """Core-only MPC flight of a dispersed case: (ground speed at the start of the hover phase [m/s],
+    fuel from the powered descent's start to the first instant in the hover band [kg])."""
+    spec = load_spec(SPEC)
+    nominal = nominal_scene(spec)
+    case = draw_case(spec, case_index, nominal.vehicle.n_thrusters)
+    ctrl = make_controller("deorbit-mpc", nominal.vehicle, **{**dict(spec.controllers[1].params), **params})
+    sim = Simulation(flown_scene(spec, case))
+    n_sub, _ = control_period(spec, sim.dt)
+    demand = Demand(altitude=500.0)
+    fuel0 = drift = None
+    while sim.t < 4000.0:
+        s = sim.state()
+        out = ctrl.update(sim.t, s, demand)
+        if ctrl.phase is Phase.POWERED and fuel0 is None:
+            fuel0 = s.fuel
+        if ctrl.phase is Phase.HOVER:
+            up = s.r_W / float(np.linalg.norm(s.r_W))
+            if drift is None:
+                drift = float(np.linalg.norm(s.v_W - float(s.v_W @ up) * up))
+            h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
+            if abs(h - demand.altitude) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+                assert fuel0 is not None
+                return drift, fuel0 - s.fuel
+        if any(r.kind == "deploy_parachute" for r in out.requests):
+            sim.deploy_parachute()
+        sim.set_throttles(out.throttles)
+        sim.step(n_sub)
+        sim.drain_events()
+    raise AssertionError("never in the hover band")
+
+
+@pytest.mark.slow  # two flights, ~20 s
+def test_mpc_planning_with_the_attitude_lag_brakes_the_drift_before_the_hover():
+    """The QP under the canopy brakes the drift late (drag pulls it back toward the wind's early on);
+    planned with an instant thrust axis, the attitude loop flew that braking ~1 s late and the hover
+    began still drifting, which the hover law took out on hover thrust."""
+    spec = load_spec(SPEC)
+    case = draw_case(spec, 55, nominal_scene(spec).vehicle.n_thrusters)
+    assert float(np.linalg.norm(case.wind_mean_W)) > 4.0  # a steady wind, small gusts: the case this is about
+    drift_instant, fuel_instant = _fly_mpc_to_the_band(55, attitude_lag=0.0)
+    drift_lag, fuel_lag = _fly_mpc_to_the_band(55)
+    print(f"drift at the hover {drift_instant:.3f} -> {drift_lag:.3f} m/s, fuel to the band {fuel_instant:.3f} -> {fuel_lag:.3f} kg")
+    assert drift_instant > spec.end.hover_speed  # 0.93 m/s
+    assert drift_lag < spec.end.hover_speed  # 0.13 m/s: the hover begins within its own speed band
+    assert fuel_lag < fuel_instant

@@ -1,6 +1,8 @@
 """Validation of controller parameters: errors name the parameter, the expected and the found shape."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .base import ControllerError
@@ -34,21 +36,19 @@ def poles_param(name: str, value: object, n: int) -> np.ndarray:
     return p
 
 
-def positive_param(name: str, value: object) -> float:
+def _number_param(name: str, value: object, ok: Callable[[float], bool], expected: str) -> float:
     try:
         v = float(value)  # type: ignore[arg-type]  # any object: float() itself is the check (caught below)
     except (TypeError, ValueError):
-        raise ControllerError(f"{name}: expected a positive number, got {value!r}") from None
-    if not np.isfinite(v) or v <= 0.0:
-        raise ControllerError(f"{name}: expected a positive number, got {value!r}")
+        raise ControllerError(f"{name}: expected {expected}, got {value!r}") from None
+    if not np.isfinite(v) or not ok(v):
+        raise ControllerError(f"{name}: expected {expected}, got {value!r}")
     return v
+
+
+def positive_param(name: str, value: object) -> float:
+    return _number_param(name, value, lambda v: v > 0.0, "a positive number")
 
 
 def non_negative_param(name: str, value: object) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]  # any object: float() itself is the check (caught below)
-    except (TypeError, ValueError):
-        raise ControllerError(f"{name}: expected a number >= 0, got {value!r}") from None
-    if not np.isfinite(v) or v < 0.0:
-        raise ControllerError(f"{name}: expected a number >= 0, got {value!r}")
-    return v
+    return _number_param(name, value, lambda v: v >= 0.0, "a number >= 0")

@@ -20,6 +20,11 @@ a new scene. The event's ``values`` are::
 ``t_end`` [s] the end instant, ``reason`` an index into :data:`END_REASONS`, and ``n(topic)`` the
 messages the simulator published on that topic since the flight's reset (``/lander/events``
 includes this event). Its ``detail`` says the same in words.
+
+Every flight has a number (0 the node's first, one more at each reset or scene load), in the
+simulator's ``/diagnostics`` (key ``flight``) and in its pause answer (``..., flight N``,
+:func:`paused_flight`): ``/diagnostics`` is published while paused too (wall-paced), and a
+recorder released just before a reset tells the old flight's last report by its number.
 """
 from __future__ import annotations
 
@@ -90,6 +95,13 @@ def shortfalls(reference: dict[str, tuple[int, bool]], recorded: dict[str, int])
         if got < n or (exact and got != n):
             out.append(f"{topic} {got} of {n}")
     return out
+
+
+def paused_flight(text: str) -> int | None:
+    """The flight number in the simulator's pause answer (``"paused at t = T s (was running),
+    flight N"``); None if it has none (a simulator from before the numbers)."""
+    head, sep, n = text.rpartition(", flight ")
+    return int(n) if sep and n.isdigit() else None
 
 
 def format_matched(counts: dict[str, int]) -> str:

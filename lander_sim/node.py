@@ -113,6 +113,10 @@ class SimNode(Node):
         #: the node feeds it every event and advances or publishes only as it answers.
         self.gate = Gate(self._gate_settings(), start_paused=bool(self._param("start_paused")))
         self._seq = 0  # sequence of the last state published since the last reset
+        #: The flight's number: 0 the node's first, one more at each reset or scene load. In
+        #: /diagnostics and the pause answer, so a recorder can drop a wall-paced report sent before
+        #: the reset it awaits (lander_tools.whole_flight).
+        self._flight = 0
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
         self._want_odom = self._want_pose = self._want_markers = False
         self._state_subscribers = 0  # subscriptions matched by the state publisher (diagnostics)
@@ -407,6 +411,7 @@ class SimNode(Node):
                 "sim_time": repr(self.sim.t),
                 "paused": str(self.gate.mode.paused),
                 "steps_per_tick": str(self._k),
+                "flight": str(self._flight),
                 "pacer_overruns": str(self.pacer.overruns),
                 # Matched by this node's writer (not just seen in the graph): a start-up handshake
                 # can wait for it, so the first state reaches everyone (test/reliability).
@@ -481,7 +486,7 @@ class SimNode(Node):
         # Nothing is published: the last state (at every tick boundary) already is the pause instant.
         # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
         was = "paused" if self.gate.pause().paused else "running"
-        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was})"
+        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was}), flight {self._flight}"
         return response
 
     def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):
@@ -664,6 +669,7 @@ class SimNode(Node):
         controller sees the sequence fall and clears its memory).
         """
         self._seq = 0
+        self._flight += 1
         pending = self.gate.reset()  # running stays running; paused, held or ended: paused
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
         self._check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to

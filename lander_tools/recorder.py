@@ -141,6 +141,9 @@ class Recorder:
         if hold:
             self.held.set()
         self.dropped: dict[str, int] = {}
+        #: Per topic, a test of the raw message: False drops it (counted in :attr:`dropped`), as
+        #: while held. ``lander record --whole-flight`` drops the sim's reports of the old flight.
+        self.accept: dict[str, Callable[[bytes], bool]] = {}
         self.closed = False
         self._error: BaseException | None = None
         self.node = rclpy.create_node(self.NODE_NAME, context=context)
@@ -241,11 +244,12 @@ class Recorder:
     def _writer_for(self, topic: str) -> Callable[[bytes], None]:
         conn = self._conns[topic]
         write = self.writer.write
-        counts, dropped, held = self.counts, self.dropped, self.held
+        counts, dropped, held, accept = self.counts, self.dropped, self.held, self.accept
         now = time.time_ns
 
         def on_message(data: bytes) -> None:
-            if held.is_set():
+            test = accept.get(topic)
+            if held.is_set() or (test is not None and not test(data)):
                 dropped[topic] = dropped.get(topic, 0) + 1
                 return
             # Receive time (wall clock, ns); analysis maps it to sim time through /clock. Runs in

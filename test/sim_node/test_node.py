@@ -215,6 +215,22 @@ def test_step_advances_exactly_n_dt_and_reset_restores_the_initial_state_bit_for
     assert s1.sequence == 1
 
 
+def test_each_reset_begins_the_next_flight_number_in_the_pause_answer_and_the_reports(probe, scenes):
+    """The flight number tells a report of the old flight from one of the new (lander record
+    --whole-flight drops the old flight's reports sent across its reset)."""
+    from lander_ros.flight_span import paused_flight
+
+    _load(probe, scenes["vertical"])
+    before = paused_flight(probe.call("pause").message)
+    assert before is not None
+    assert _diag_when_paused(probe)["flight"] == str(before)
+    probe.call("reset", Reset.Request())
+    after = probe.call("pause")
+    assert paused_flight(after.message) == before + 1 and "(was paused), flight " in after.message, after.message
+    probe.wait_for(lambda: probe.diagnostics[-1]["flight"] == str(before + 1), 10.0, "a report of the new flight")
+    assert paused_flight("paused at t = 1.5 s (was running)") is None  # a sim from before the numbers
+
+
 def test_services_refuse_bad_arguments_and_count_them(probe, scenes):
     _load(probe, scenes["vertical"])
     before = _paused_state(probe)

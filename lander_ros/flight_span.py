@@ -29,6 +29,7 @@ recorder released just before a reset tells the old flight's last report by its 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 #: Why a flight ended; ``FLIGHT_ENDED.values[1]`` indexes this tuple.
 END_REASONS: tuple[str, ...] = ("time-limit", "landed", "crashed")
@@ -97,11 +98,27 @@ def shortfalls(reference: dict[str, tuple[int, bool]], recorded: dict[str, int])
     return out
 
 
+#: The simulator's pause answer ends with this and the flight's number.
+FLIGHT_SUFFIX = ", flight "
+#: Start of the name of the simulator's ``DiagnosticStatus`` (``"lander_sim: simulation"``); the
+#: autopilot reports on ``/diagnostics`` too.
+SIM_REPORT_PREFIX = "lander_sim:"
+
+
 def paused_flight(text: str) -> int | None:
     """The flight number in the simulator's pause answer (``"paused at t = T s (was running),
     flight N"``); None if it has none (a simulator from before the numbers)."""
-    head, sep, n = text.rpartition(", flight ")
+    head, sep, n = text.rpartition(FLIGHT_SUFFIX)
     return int(n) if sep and n.isdigit() else None
+
+
+def sim_report(msg: Any) -> dict[str, str] | None:
+    """The simulator's status in a ``diagnostic_msgs/DiagnosticArray`` as ``{key: value}`` (rclpy's
+    message or a bag reader's); None if the array has none."""
+    for status in msg.status:
+        if status.name.startswith(SIM_REPORT_PREFIX):
+            return {kv.key: kv.value for kv in status.values}
+    return None
 
 
 def format_matched(counts: dict[str, int]) -> str:

@@ -49,6 +49,7 @@ from lander_ros.delivery import (
 )
 from lander_ros.flight_span import (
     COUNTED_TOPICS,
+    FLIGHT_SUFFIX,
     FlightEnd,
     format_matched,
     parse_end_on,
@@ -486,7 +487,7 @@ class SimNode(Node):
         # Nothing is published: the last state (at every tick boundary) already is the pause instant.
         # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
         was = "paused" if self.gate.pause().paused else "running"
-        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was}), flight {self._flight}"
+        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was}){FLIGHT_SUFFIX}{self._flight}"
         return response
 
     def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):

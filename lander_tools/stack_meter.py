@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
 
 REPO = Path(__file__).resolve().parents[1]  # where `python -m lander_tools.cli` runs from
@@ -166,12 +167,9 @@ def loop_figures(bag_path: Path) -> LoopFigures:
     commands_missing = int(len(seq) - 1 - len(lat))
     timeouts = None
     diag = bag.topics.get("/diagnostics")
-    sim_reports = [st for m in (diag.messages if diag is not None else []) for st in m.status
-                   if st.name.startswith("lander_sim")]  # the autopilot reports there too
-    if sim_reports:
-        for kv in sim_reports[-1].values:
-            if kv.key == "lockstep_timeouts":
-                timeouts = int(kv.value)
+    sim_reports = [r for m in (diag.messages if diag is not None else []) if (r := sim_report(m)) is not None]
+    if sim_reports and "lockstep_timeouts" in sim_reports[-1]:
+        timeouts = int(sim_reports[-1]["lockstep_timeouts"])
     # RTF over the stepping part: from the first state at t > 0 (the reset's state 1 at t = 0 waits for the resume).
     moving = np.flatnonzero(t > 0.0)
     i0 = max(int(moving[0]) - 1, 0) if len(moving) else 0

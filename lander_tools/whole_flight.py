@@ -205,14 +205,12 @@ def _not_of_flight(old: int) -> Callable[[bytes], bool]:
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.serialization import deserialize_message
 
-    from lander_tools.live.link import SIM_NODE
+    from lander_ros.flight_span import sim_report
 
     def test(data: bytes) -> bool:
-        for status in deserialize_message(data, DiagnosticArray).status:
-            if status.name.startswith(SIM_NODE.lstrip("/") + ":"):
-                flight = next((kv.value for kv in status.values if kv.key == "flight"), None)
-                return flight != str(old)
-        return True  # not the simulator's: its count does not cover it
+        report = sim_report(deserialize_message(data, DiagnosticArray))
+        # not the simulator's (the autopilot's): the sim's count does not cover it
+        return report is None or report.get("flight") != str(old)
 
     return test
 

@@ -233,9 +233,8 @@ class DescentMpc:
         if st.attitude_lag > 0:
             keep = math.exp(-h / st.attitude_lag)
             self._keep.value, self._gain.value = keep, 1.0 - keep
-            last = float(np.linalg.norm(self._last))
-            self._r0.value = (last * np.asarray(thrust_axis_L, float)[:2] if thrust_axis_L is not None
-                              else self._last[:2])
+            self._r0.value = (float(np.linalg.norm(self._last)) * np.asarray(thrust_axis_L, float)[:2]
+                              if thrust_axis_L is not None else self._last[:2])
         if self.drag is None:
             self._d0.value, self._dv.value = np.zeros((H, 3)), np.zeros((H, 3))
         else:

@@ -51,6 +51,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
 from lander_tools.live import views
 from lander_tools.live.link import (
@@ -409,11 +410,9 @@ class LiveBridge:
             self._publish_parameters()
 
     def _on_diagnostics(self, msg: Any) -> None:
-        for status in msg.status:
-            if status.name.startswith("lander_sim"):
-                for kv in status.values:
-                    if kv.key == "paused":
-                        self.paused = kv.value.lower() in ("true", "1", "yes")
+        paused = (sim_report(msg) or {}).get("paused")
+        if paused is not None:
+            self.paused = paused.lower() in ("true", "1", "yes")
 
     def _publish_parameters(self) -> None:
         self.server.publish_parameter_values(self.parameter_list())

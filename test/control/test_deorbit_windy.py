@@ -9,7 +9,9 @@ half of two thrusters for ~2 s) and stopped 18 m under.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +20,7 @@ from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.deorbit import Phase
 from lander_autopilot.controllers.registry import make_controller
 from lander_sim.physics import constants as c
+from lander_sim.physics.state import StateView
 from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import flown_scene, nominal_scene
 from lander_tools.sweep.dispersion import draw_case
@@ -25,6 +28,30 @@ from lander_tools.sweep.flight import control_period
 from lander_tools.sweep.spec import load_spec
 
 SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
+DEMAND = Demand(altitude=500.0)
+
+
+def _flown(case_index: int, controller_index: int, **params: object) -> Iterator[tuple[StateView, Any, Simulation]]:
+    """A core-only flight of the sweep's dispersed case ``case_index`` with its controller
+    ``controller_index`` (``params`` over the sweep's), a control period at a time: yields the state
+    the law was given, the law after its update, and the simulation after the period; 4000 s at most."""
+    spec = load_spec(SPEC)
+    nominal = nominal_scene(spec)
+    case = draw_case(spec, case_index, nominal.vehicle.n_thrusters)
+    choice = spec.controllers[controller_index]
+    ctrl = make_controller(choice.name, nominal.vehicle, **{**dict(choice.params), **params})
+    sim = Simulation(flown_scene(spec, case))
+    n_sub, _ = control_period(spec, sim.dt)
+    while sim.t < 4000.0:
+        s = sim.state()
+        out = ctrl.update(sim.t, s, DEMAND)
+        if any(r.kind == "deploy_parachute" for r in out.requests):
+            sim.deploy_parachute()
+        sim.set_throttles(out.throttles)
+        sim.step(n_sub)
+        sim.drain_events()
+        assert sim.phase.name == "FLYING", sim.phase
+        yield s, ctrl, sim
 
 
 @pytest.mark.slow  # ~2500 s of simulated flight, ~6 s
@@ -33,25 +60,15 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
     nominal = nominal_scene(spec)
     case = draw_case(spec, 88, nominal.vehicle.n_thrusters)
     assert float(np.linalg.norm(case.wind_mean_W)) > 5.0  # the case this test is about
-    ctrl = make_controller("deorbit", nominal.vehicle, **dict(spec.controllers[0].params))
-    sim = Simulation(flown_scene(spec, case))
-    n_sub, _ = control_period(spec, sim.dt)
-    demand = Demand(altitude=500.0)
     yaw_rates: list[float] = []
     heading_at_braking = None
-    while sim.t < 4000.0 and ctrl.phase is not Phase.HOVER:
-        s = sim.state()
-        out = ctrl.update(sim.t, s, demand)
+    for s, ctrl, sim in _flown(88, 0):  # noqa: B007 - sim: read after the loop (the period the hover began)
         if ctrl.phase is Phase.POWERED:
             yaw_rates.append(abs(float(s.omega_B[2])))
             if heading_at_braking is None and ctrl.descent.heading_W is not None:
                 heading_at_braking = ctrl.descent.heading_W.copy()
-        if any(r.kind == "deploy_parachute" for r in out.requests):
-            sim.deploy_parachute()
-        sim.set_throttles(out.throttles)
-        sim.step(n_sub)
-        sim.drain_events()
-        assert sim.phase.name == "FLYING", sim.phase
+        if ctrl.phase is Phase.HOVER:
+            break
     assert ctrl.phase is Phase.HOVER
     # no false alarm under the canopy: all four thrusters stay in the allocation, no spin
     assert ctrl.descent.allocation is None and ctrl.descent.spin is None
@@ -69,17 +86,9 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
 def _fly_mpc_to_the_band(case_index: int, **params: object) -> tuple[float, float]:
     """Core-only MPC flight of a dispersed case: (ground speed at the start of the hover phase [m/s],
     fuel from the powered descent's start to the first instant in the hover band [kg])."""
-    spec = load_spec(SPEC)
-    nominal = nominal_scene(spec)
-    case = draw_case(spec, case_index, nominal.vehicle.n_thrusters)
-    ctrl = make_controller("deorbit-mpc", nominal.vehicle, **{**dict(spec.controllers[1].params), **params})
-    sim = Simulation(flown_scene(spec, case))
-    n_sub, _ = control_period(spec, sim.dt)
-    demand = Demand(altitude=500.0)
+    end = load_spec(SPEC).end
     fuel0 = drift = None
-    while sim.t < 4000.0:
-        s = sim.state()
-        out = ctrl.update(sim.t, s, demand)
+    for s, ctrl, _sim in _flown(case_index, 1, **params):
         if ctrl.phase is Phase.POWERED and fuel0 is None:
             fuel0 = s.fuel
         if ctrl.phase is Phase.HOVER:
@@ -87,14 +96,9 @@ def _fly_mpc_to_the_band(case_index: int, **params: object) -> tuple[float, floa
             if drift is None:
                 drift = float(np.linalg.norm(s.v_W - float(s.v_W @ up) * up))
             h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
-            if abs(h - demand.altitude) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+            if abs(h - DEMAND.altitude) <= end.hover_band and float(np.linalg.norm(s.v_W)) <= end.hover_speed:
                 assert fuel0 is not None
                 return drift, fuel0 - s.fuel
-        if any(r.kind == "deploy_parachute" for r in out.requests):
-            sim.deploy_parachute()
-        sim.set_throttles(out.throttles)
-        sim.step(n_sub)
-        sim.drain_events()
     raise AssertionError("never in the hover band")
 
 

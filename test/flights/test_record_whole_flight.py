@@ -50,6 +50,7 @@ def test_reports_of_the_old_flight_sent_across_the_reset_are_not_recorded(tmp_pa
     flight right up to the reset, after the recorder is released: they must be dropped (by the
     flight number they carry), or the bag holds more than the flight. A 2-core CI run once
     recorded one at 1 Hz (`/diagnostics 2 of 1 published`)."""
+    from lander_ros.flight_span import sim_report
     from lander_tools.bagio import read_bag
 
     # The sim's loop publishes a report at most once a pass (~30 a second here); without the drop
@@ -62,9 +63,8 @@ def test_reports_of_the_old_flight_sent_across_the_reset_are_not_recorded(tmp_pa
             assert r.returncode == 0, r.stdout + r.stderr + sim.output()
         assert "complete: the whole flight, t = 0 to 1.0 s (time-limit)" in r.stdout
         check_span(bag, end_t=1.0)
-        reports = read_bag(bag, ["/diagnostics"]).topics["/diagnostics"].messages
-        numbers = {kv.value for m in reports for st in m.status if st.name.startswith("lander_sim:")
-                   for kv in st.values if kv.key == "flight"}
+        reports = [sim_report(m) for m in read_bag(bag, ["/diagnostics"]).topics["/diagnostics"].messages]
+        numbers = {r.get("flight") for r in reports if r is not None}
         assert len(reports) > 10 and numbers == {"1"}, (k, len(reports), numbers)  # the node's first reset
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import rosutil
+from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
 
 REPO = Path(__file__).resolve().parents[2]
@@ -119,9 +120,9 @@ class Watch(rosutil.Observer):
         }
 
     def _on_diag(self, msg: Any) -> None:
-        for st in msg.status:
-            if st.name.startswith("lander_sim"):
-                self.diagnostics.append({kv.key: kv.value for kv in st.values})
+        report = sim_report(msg)
+        if report is not None:
+            self.diagnostics.append(report)
 
     def latest_diag(self, after: int | None = None, timeout: float = REPLY_TIMEOUT) -> dict[str, str]:
         """The first sim diagnostics report after the ``after`` reports received so far (default: a new one)."""

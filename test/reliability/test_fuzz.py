@@ -88,10 +88,21 @@ def _stepped_state(watch: Watch):
     """The state one physics step on (the sim stays paused). From a reset this is bit-exactly
     the same state every time unless an accepted input changed the dynamics: so comparing it
     shows whether rejected input touched anything (throttles, wind)."""
+    from lander_ros.stamps import sim_time_to_ns
+
     n = len(watch.states)
-    assert watch.call("step", _step1()).success
-    watch.wait_for(lambda: len(watch.states) > n, what="the state after one step")
-    return watch.states[-1]
+    res = watch.call("step", _step1())
+    assert res.success
+    # The state of the step's instant, found by its stamp: the reset's state 1 (t = 0) can arrive
+    # after the step was asked for, and taking the newest state then compared it (a run saw the
+    # stamps differ: bytes 8-11 of the serialised state).
+    ns = sim_time_to_ns(res.sim_time)
+
+    def stepped() -> list:
+        return [m for m in watch.states[n:] if m.header.stamp.sec * 10**9 + m.header.stamp.nanosec == ns]
+
+    watch.wait_for(lambda: bool(stepped()), what="the state after one step")
+    return stepped()[0]
 
 
 def test_fuzzed_throttle_and_wind_messages_are_counted_and_rejected_ones_change_nothing(

@@ -33,6 +33,33 @@ def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> n
     return min(max(collective, -lo), 1.0 - hi) + d
 
 
+@dataclass
+class CollectiveHeadroom:
+    """The share of the collective throttle the attitude law takes when the mixer's ceiling binds.
+
+    Under attitude priority (:func:`mix_with_attitude_priority`) the collective is capped at
+    ``1 - max(d)``, ``d`` the attitude law's differential. Under the canopy in a wind that torque is
+    steady (the canopy pulls off the body axis): in the 200 km sweep's worst flights one thruster
+    sat at full throttle through the braking with the mean at 0.89-0.95, so a braking planned on the
+    full collective ran 1-5 m under the hover. ``share`` is ``max(d)`` filtered with time constant
+    ``time_constant`` [s], updated only in periods where the cap binds (``pinned``): an attitude
+    correction that the collective has room for costs the braking nothing.
+    """
+
+    time_constant: float = 1.0
+    share: float = 0.0
+
+    def update(self, differential_top: float, pinned: bool, dt: float) -> None:
+        """``differential_top``: ``max(d)`` this period; ``pinned``: the collective was capped; ``dt`` [s]."""
+        if pinned:
+            self.share += min(dt / self.time_constant, 1.0) * (max(differential_top, 0.0) - self.share)
+
+    @property
+    def available(self) -> float:
+        """Fraction of the full collective the braking can count on."""
+        return 1.0 - self.share
+
+
 @dataclass(frozen=True)
 class Mix:
     """A summed law's throttles before clipping, and whether its mixer gave way.

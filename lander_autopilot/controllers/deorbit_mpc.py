@@ -38,7 +38,7 @@ from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, Gu
 from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
-from .combined import mix_with_attitude_priority
+from .combined import CollectiveHeadroom, mix_with_attitude_priority
 from .deorbit import DeorbitController, Phase, thrust_axis_attitude
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
@@ -95,7 +95,9 @@ class DeorbitMpcController(DeorbitController):
     spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference),
     ``reference_thrust`` (fraction of the thrust the reference is solved at, which fixes the end
     time: 0.95, so the braking starts with 4 % in hand for what the attitude law takes under the
-    canopy in a wind; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md);
+    canopy in a wind; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md;
+    each period the QP's thrust bound is also scaled by the collective the attitude law leaves,
+    :class:`.combined.CollectiveHeadroom`, learnt in the periods where it binds);
     ``attitude_lag`` [s] (how late the QP expects the thrust axis to follow its command; default
     ``ATTITUDE_LAG``, the mean delay of the thrust axis's attitude loop: planned as instant, the QP's
     late horizontal braking was flown ~1 s behind and the hover began with 0.5-1 m/s of drift);
@@ -155,6 +157,8 @@ class DeorbitMpcController(DeorbitController):
         self._t_handover = 0.0
         self.reference_time = math.nan  # wall time of the handover's reference solve [s]
         self.thrust_L: np.ndarray | None = None
+        self.headroom = CollectiveHeadroom()  # what the attitude law takes of the collective
+        self._t_last = math.nan
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         out = super().update(t, state, demand)
@@ -171,11 +175,16 @@ class DeorbitMpcController(DeorbitController):
         p_L = np.array([d[0], d[1], h])
         v_L = L @ state.v_W
         T_L = self.mpc.command(t - self._t_handover, p_L, v_L, self.vehicle.mass(state.fuel),
-                               thrust_axis_L=L @ quat_to_matrix(state.q)[2])
+                               thrust_axis_L=L @ quat_to_matrix(state.q)[2],
+                               available=self.headroom.available)
         self.thrust_L = T_L  # the QP's thrust this period [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
         diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
+        top = float(diff.max())
+        if t > self._t_last:
+            self.headroom.update(top, mag / self.axial > 1.0 - top, t - self._t_last)
+        self._t_last = t
         u = saturate(mix_with_attitude_priority(mag / self.axial, diff))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
 

@@ -207,11 +207,13 @@ class DescentMpc:
         self._last = self.reference.at(0.0)[2]
 
     def command(self, t: float, position_L: np.ndarray, velocity_L: np.ndarray, mass: float,
-                thrust_axis_L: np.ndarray | None = None) -> np.ndarray:
+                thrust_axis_L: np.ndarray | None = None, available: float = 1.0) -> np.ndarray:
         """Thrust vector [N, local frame] to hold until the next period; ``t`` s after the handover.
 
         ``thrust_axis_L``: the body's thrust axis now (unit, local frame), where the horizontal thrust
         flown starts from with ``attitude_lag`` (default: the last command's direction).
+        ``available``: fraction of ``rho_max`` the thrusters can give now (the rest is the attitude
+        law's, :class:`lander_autopilot.controllers.combined.CollectiveHeadroom`).
         """
         import cvxpy as cp
 
@@ -227,7 +229,7 @@ class DescentMpc:
         m_k = np.maximum(mass - (ref_mass[0] - ref_mass), self.limits.dry_mass)  # burning as the reference does
         self._h.value, self._hh.value = h, h * h / 2
         self._x0.value = np.r_[position_L, velocity_L]
-        self._amax.value = st.plan_thrust_fraction * self.limits.rho_max / m_k
+        self._amax.value = st.plan_thrust_fraction * available * self.limits.rho_max / m_k
         self._fuel_w.value = m_k * h
         self._end_w.value = st.end_penalty * mass
         if st.attitude_lag > 0:

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from lander_autopilot.controllers import Demand
+from lander_autopilot.controllers.combined import CollectiveHeadroom
 from lander_autopilot.controllers.deorbit import Phase
 from lander_autopilot.controllers.registry import make_controller
 from lander_sim.physics import constants as c
@@ -116,3 +117,28 @@ def test_mpc_planning_with_the_attitude_lag_brakes_the_drift_before_the_hover():
     assert drift_instant > spec.end.hover_speed  # 0.93 m/s
     assert drift_lag < spec.end.hover_speed  # 0.13 m/s: the hover begins within its own speed band
     assert fuel_lag < fuel_instant
+
+
+def _braking_end(case_index: int) -> tuple[float, float]:
+    """Scheduled law, core-only: (altitude error [m] where the `hover` phase begins, the attitude
+    law's learnt share of the collective then)."""
+    for s, ctrl, _sim in _flown(case_index, 0):
+        if ctrl.phase is Phase.HOVER:
+            return float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude, ctrl.descent.headroom.share
+    raise AssertionError("no hover")
+
+
+@pytest.mark.slow  # two flights, ~20 s
+def test_braking_on_the_collective_the_attitude_law_leaves_stops_in_the_band(monkeypatch):
+    """Case 196 (5.4 m/s of wind): under the canopy the attitude law holds one thruster at full
+    throttle through the braking. Planned on the full collective, the limb ran out of thrust and the
+    fall stopped 4.7 m under the hover (the hover law then climbed back on hover thrust: 1.37 x the
+    optimum's fuel in the sweep); on the collective left, it stops within the band."""
+    band = load_spec(SPEC).end.hover_band
+    error, share = _braking_end(196)
+    monkeypatch.setattr(CollectiveHeadroom, "update", lambda self, *args: None)  # the full collective, as before
+    error_full, share_full = _braking_end(196)
+    print(f"braking ends {error_full:+.2f} m (full collective) -> {error:+.2f} m (share {share:.3f} learnt)")
+    assert share_full == 0.0 and share > 0.02
+    assert error_full < -band
+    assert -band <= error <= band

@@ -2,7 +2,7 @@
 
 For the cases of a de-orbit sweep (by default its ``--worst`` flights of one controller and
 ``--others`` drawn at random from the rest) this re-flies each case core-only with the current
-code, exactly as the sweep flies it (the same scene, dispersions and control period), and prints
+code, exactly as the sweep flies it (:func:`lander_tools.sweep.flight.flown_periods`), and prints
 how the powered descent ended (the start of the phase ``hover``): its altitude error, climb rate
 and ground speed, the attitude law's learnt share of the collective
 (:class:`lander_autopilot.controllers.combined.CollectiveHeadroom`), the fuel to there over the
@@ -28,12 +28,8 @@ import numpy as np
 
 from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.deorbit import Phase
-from lander_autopilot.controllers.registry import make_controller
 from lander_sim.physics import constants as c
-from lander_sim.simulation import Simulation
-from lander_tools.sweep.case_scene import flown_scene, nominal_scene
-from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.flight import control_period
+from lander_tools.sweep.flight import flown_periods
 from lander_tools.sweep.spec import load_spec
 
 DEMAND = Demand(altitude=500.0)
@@ -43,37 +39,24 @@ def replay(args: tuple[str, int, int]) -> tuple[int, dict[str, float] | None]:
     """Fly case ``index`` of the spec with its controller ``ci``; None if it never reached the band."""
     spec_path, ci, index = args
     spec = load_spec(spec_path)
-    nominal = nominal_scene(spec)
-    case = draw_case(spec, index, nominal.vehicle.n_thrusters)
-    choice = spec.controllers[ci]
-    ctrl = make_controller(choice.name, nominal.vehicle, **dict(choice.params))
-    sim = Simulation(flown_scene(spec, case))
-    n_sub, _ = control_period(spec, sim.dt)
     band, speed = spec.end.hover_band, spec.end.hover_speed
-    row: dict[str, float] = {"wind": float(np.linalg.norm(case.wind_mean_W))}
+    row: dict[str, float] = {}
     fuel0 = t0 = None
-    while sim.t < spec.end.duration and sim.phase.name == "FLYING":
-        s = sim.state()
-        out = ctrl.update(sim.t, s, DEMAND)
+    for t, s, ctrl, sim in flown_periods(spec, ci, index):
         h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
         if ctrl.phase is Phase.POWERED and fuel0 is None:
-            fuel0, t0 = s.fuel, sim.t
+            fuel0, t0 = s.fuel, t
         if ctrl.phase is Phase.HOVER and fuel0 is not None and t0 is not None:
             if "hover_t" not in row:
                 up = s.r_W / float(np.linalg.norm(s.r_W))
                 hd = float(s.v_W @ up)
-                headroom = getattr(ctrl, "headroom", None) if choice.name == "deorbit-mpc" else ctrl.descent.headroom
-                row.update(hover_t=sim.t - t0, error=h - DEMAND.altitude, climb=hd,
-                           drift=float(np.linalg.norm(s.v_W - hd * up)), fuel_hover=fuel0 - s.fuel,
+                headroom = getattr(ctrl, "headroom", None) if spec.controllers[ci].name == "deorbit-mpc" else ctrl.descent.headroom
+                row.update(wind=float(np.linalg.norm(sim.scene.wind_W)), hover_t=t - t0, error=h - DEMAND.altitude,
+                           climb=hd, drift=float(np.linalg.norm(s.v_W - hd * up)), fuel_hover=fuel0 - s.fuel,
                            share=headroom.share if headroom is not None else math.nan)
             if abs(h - DEMAND.altitude) <= band and float(np.linalg.norm(s.v_W)) <= speed:
-                row.update(band_t=sim.t - t0, fuel_band=fuel0 - s.fuel)
+                row.update(band_t=t - t0, fuel_band=fuel0 - s.fuel)
                 return index, row
-        if any(r.kind == "deploy_parachute" for r in out.requests):
-            sim.deploy_parachute()
-        sim.set_throttles(out.throttles)
-        sim.step(n_sub)
-        sim.drain_events()
     return index, None
 
 

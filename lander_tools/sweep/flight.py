@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -211,6 +212,37 @@ def fly_case(
             body_rate=samples.body_rate[:m], throttles=np.asarray(thr_log).reshape(m, -1),
         )
     return FlightResult(row, traj)
+
+
+def flown_periods(spec: SweepSpec, controller_index: int, index: int,
+                  **params: Any) -> Iterator[tuple[float, Any, Any, Any]]:
+    """Flight ``index`` with controller ``controller_index`` as :func:`fly_case` flies it (the same
+    scene, case, demand schedule, control instants ``k * period`` and requests), a control period at
+    a time, for replays that look inside the law: yields ``(t, the state the law was given, the law
+    after its update, the simulation after the period)``. ``params`` go over the spec's controller
+    parameters. Ends at ``end.duration`` or once the lander is down."""
+    from lander_autopilot.controllers import make_controller
+    from lander_autopilot.controllers.base import Demand
+    from lander_sim.simulation import Simulation
+
+    scene0 = nominal_scene(spec)
+    case = draw_case(spec, index, scene0.vehicle.n_thrusters)
+    choice = spec.controllers[controller_index]
+    ctrl = make_controller(choice.name, scene0.vehicle, **{**dict(choice.params), **params})
+    sim = Simulation(flown_scene(spec, case))
+    n_sub, period = control_period(spec, sim.dt)
+    h_before, h_after, t_change = demand_schedule(spec, scene0, case)
+    demand_before, demand_after = Demand(altitude=h_before), Demand(altitude=h_after)
+    for k in range(int(math.floor(spec.end.duration / period + 1e-9))):
+        t = k * period
+        st = sim.state()
+        out = ctrl.update(t, st, demand_after if t >= t_change else demand_before)
+        _act_on_requests(sim, out)
+        sim.set_throttles(out.throttles)
+        sim.step(n_sub)
+        yield t, st, ctrl, sim
+        if _phase_name(sim) != "FLYING":
+            return
 
 
 def _chute_open(sim: Any) -> bool:

@@ -19,13 +19,12 @@ import pytest
 from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.combined import CollectiveHeadroom
 from lander_autopilot.controllers.deorbit import Phase
-from lander_autopilot.controllers.registry import make_controller
 from lander_sim.physics import constants as c
 from lander_sim.physics.state import StateView
 from lander_sim.simulation import Simulation
-from lander_tools.sweep.case_scene import flown_scene, nominal_scene
+from lander_tools.sweep.case_scene import nominal_scene
 from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.flight import control_period
+from lander_tools.sweep.flight import flown_periods
 from lander_tools.sweep.spec import load_spec
 
 SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
@@ -33,24 +32,11 @@ DEMAND = Demand(altitude=500.0)
 
 
 def _flown(case_index: int, controller_index: int, **params: object) -> Iterator[tuple[StateView, Any, Simulation]]:
-    """A core-only flight of the sweep's dispersed case ``case_index`` with its controller
-    ``controller_index`` (``params`` over the sweep's), a control period at a time: yields the state
-    the law was given, the law after its update, and the simulation after the period; 4000 s at most."""
-    spec = load_spec(SPEC)
-    nominal = nominal_scene(spec)
-    case = draw_case(spec, case_index, nominal.vehicle.n_thrusters)
-    choice = spec.controllers[controller_index]
-    ctrl = make_controller(choice.name, nominal.vehicle, **{**dict(choice.params), **params})
-    sim = Simulation(flown_scene(spec, case))
-    n_sub, _ = control_period(spec, sim.dt)
-    while sim.t < 4000.0:
-        s = sim.state()
-        out = ctrl.update(sim.t, s, DEMAND)
-        if any(r.kind == "deploy_parachute" for r in out.requests):
-            sim.deploy_parachute()
-        sim.set_throttles(out.throttles)
-        sim.step(n_sub)
-        sim.drain_events()
+    """The sweep's dispersed case ``case_index`` with its controller ``controller_index`` (``params``
+    over the sweep's), flown as the sweep flies it (:func:`flown_periods`), a control period at a
+    time: yields the state the law was given, the law after its update, and the simulation after
+    the period; 4000 s at most (the spec's duration)."""
+    for _t, s, ctrl, sim in flown_periods(load_spec(SPEC), controller_index, case_index, **params):
         assert sim.phase.name == "FLYING", sim.phase
         yield s, ctrl, sim
 

@@ -42,15 +42,19 @@ class CollectiveHeadroom:
     steady (the canopy pulls off the body axis): in the 200 km sweep's worst flights one thruster
     sat at full throttle through the braking with the mean at 0.89-0.95, so a braking planned on the
     full collective ran 1-5 m under the hover. ``share`` is ``max(d)`` filtered with time constant
-    ``time_constant`` [s], updated only in periods where the cap binds (``pinned``): an attitude
-    correction that the collective has room for costs the braking nothing.
+    ``time_constant`` [s], updated only in the periods its caller marks ``pinned`` and held between
+    them. The descent law (:class:`.deorbit.DescentToAltitude`) marks every period in which the mixer
+    gave way, at the floor as well as at the ceiling: as the braking begins, the collective still
+    low and the thrust axis turning, that is one period in a typical flight, which alone teaches a
+    share of ~0.03; marked at the ceiling only, the 200 km sweep's 20 worst flights lost most of
+    the gain (median 1.148 x against 1.060, docs/deorbit.md). The MPC marks the ceiling only.
     """
 
     time_constant: float = 1.0
     share: float = 0.0
 
     def update(self, differential_top: float, pinned: bool, dt: float) -> None:
-        """``differential_top``: ``max(d)`` this period; ``pinned``: the collective was capped; ``dt`` [s]."""
+        """``differential_top``: ``max(d)`` this period; ``pinned``: learn from this period; ``dt`` [s]."""
         if pinned:
             self.share += min(dt / self.time_constant, 1.0) * (max(differential_top, 0.0) - self.share)
 

@@ -161,6 +161,8 @@ class DescentToAltitude(LandingController):
         if self.mode != "coast":
             u = m.throttles if m.mixed_from is None else m.mixed_from
             top = float(u.max())
+            # the mixer gave way at either end (CollectiveHeadroom: the floor's one period as the
+            # braking begins is what the typical flight learns from)
             self.headroom.update(top - self.collective.level, m.mixed_from is not None or top >= 1.0, self._dt)
         return m
 

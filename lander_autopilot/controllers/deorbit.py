@@ -75,6 +75,7 @@ from .base import (
     Demand,
     saturate,
 )
+from .calibration import AirFit, ChuteDragFit, ThrustCalibration
 from .combined import CollectiveHeadroom, Mix, mix_with_attitude_priority
 from .ground_speed import GroundSpeedController
 from .landing import MODES, LandingController
@@ -359,13 +360,22 @@ class DeorbitController(Controller):
         self._last_climb: tuple[float, float] | None = None
         self._last_coast: tuple[float, np.ndarray] | None = None  # (t, v_W) at the last entry period
         self._coast_thrust = math.inf  # axial thrust [N] commanded over the period since
+        self.thrust_calibration = ThrustCalibration()
+        self.air_fit = ChuteDragFit()
+        self.air: AirFit | None = None  # the fit at the powered descent's start (_fit_air)
+        self._last_air: tuple[float, np.ndarray, np.ndarray, float] | None = None  # (t, v_W, r_W, fuel)
+        self._coast_thrust_W = np.zeros(3)  # thrust [N, world] commanded over the period since
+        self._last_burn: tuple[float, np.ndarray, np.ndarray, float, float] | None = None  # (t, v_W, g_W, fuel, thrust)
 
     def _to(self, t: float, phase: Phase, why: str) -> None:
         self.log.transitions.append((t, self.phase, phase, why))
         self.phase = phase
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
+        burning = self.phase is Phase.BURN
         out = saturate(self.command(t, state, demand))
+        if burning or self.phase is Phase.BURN:
+            self._learn_thrust(t, state, self.descent.T_v * float(np.mean(out.throttles)) if self.phase is Phase.BURN else 0.0)
         if self.phase in DESCENT_PHASES:
             self.descent.floor = demand.altitude
             if (self.phase is Phase.ENTRY and self.chute_first and not self._chute_open
@@ -391,18 +401,17 @@ class DeorbitController(Controller):
                 else:
                     # under the chute: thrust axis against the velocity, where the canopy (attached
                     # on body +z) pulls it anyway (holding the local vertical fought its torque)
-                    self._learn_drag(t, state)
-                    coast = saturate(self._retrograde(state, 0.0))
+                    coast = self._chute_coast(t, state)
                 return ControlOutput(coast.throttles, coast.saturated, coast.unclipped, mode=self.phase.value,
                                      requests=inner.requests)
             if self.phase in (Phase.ENTRY, Phase.PARACHUTE) and inner.mode != "coast":
                 self._to(t, Phase.POWERED, f"braking curve reached at {self._altitude(state):.0f} m")
+                self._fit_air(state)
             elif self.chute_first and self._chute_open and self.phase is Phase.PARACHUTE:
                 # Still coasting under the chute: thrust axis along the airflow (as above), not the
                 # descent law's upright hold, which fought the canopy's torque while the horizontal
                 # speed decayed (4.7 kg from scenario 0's orbit). Its mode stays its own.
-                self._learn_drag(t, state)
-                coast = saturate(self._retrograde(state, 0.0))
+                coast = self._chute_coast(t, state)
                 return ControlOutput(coast.throttles, coast.saturated, coast.unclipped, mode=self.phase.value,
                                      requests=inner.requests)
             if self.phase is Phase.POWERED and demand.altitude > 0 and self._settled(state, demand):
@@ -467,6 +476,20 @@ class DeorbitController(Controller):
         drag = self._drag_k * self.descent.drag_scale * MARS_ATMOSPHERE.density(h) * speed2
         return drag / mass - g > d.braking_acceleration(mass, g)
 
+    def _learn_thrust(self, t: float, state: StateView, thrust: float) -> None:
+        """De-orbit burn: one period's measured thrust acceleration against the model's
+        (:class:`.calibration.ThrustCalibration`); ``thrust`` [N] is the axial thrust commanded for
+        the period starting now. The MPC's powered descent plans on the scale (``deorbit-mpc``); the
+        scheduled law does not use it yet (its sweeps were flown without it)."""
+        rn = float(np.linalg.norm(state.r_W))
+        g_W = -c.GM_MARS * np.asarray(state.r_W, float) / rn**3
+        prev = self._last_burn
+        if prev is not None and t > prev[0] and prev[4] > 0.0:
+            dt = t - prev[0]
+            mass = 0.5 * (self.vehicle.mass(prev[3]) + self.vehicle.mass(state.fuel))
+            self.thrust_calibration.add((state.v_W - prev[1]) / dt, 0.5 * (g_W + prev[2]), prev[4], mass)
+        self._last_burn = (t, np.array(state.v_W, float), g_W, float(state.fuel), thrust)
+
     def _learn_density(self, t: float, state: StateView) -> None:
         """Entry, chute packed, coasting: the air's density against the model's, for the chute.
 
@@ -493,6 +516,23 @@ class DeorbitController(Controller):
         d = self.descent
         d.density_scale += min((t - prev[0]) / 2.0, 1.0) * (ratio - d.density_scale)
 
+    def _chute_coast(self, t: float, state: StateView) -> ControlOutput:
+        """Under the open chute, no collective: the thrust axis held against the velocity, and the
+        drag measured (:meth:`_learn_drag`)."""
+        self._learn_drag(t, state)
+        coast = saturate(self._retrograde(state, 0.0))
+        # the thrust this period flies [N, world], for the next period's measured drag
+        self._coast_thrust_W = (self.descent.T_v * self.thrust_calibration.scale * float(np.mean(coast.throttles))
+                               * quat_to_matrix(state.q)[2])
+        return coast
+
+    def _fit_air(self, state: StateView) -> None:
+        """At the powered descent's start: the density scale and mean wind over the coast under the
+        chute (:class:`.calibration.ChuteDragFit`), from the scale learnt and the drift as first guess."""
+        up = state.r_W / float(np.linalg.norm(state.r_W))
+        drift = state.v_W - float(state.v_W @ up) * up
+        self.air = self.air_fit.solve(self.descent.drag_scale, drift)
+
     def _learn_drag(self, t: float, state: StateView) -> None:
         """Under the open chute with the thrusters off: the drag the air really gives against the model's.
 
@@ -502,10 +542,24 @@ class DeorbitController(Controller):
         number, which the braking limb then uses (:attr:`DescentToAltitude.drag_scale`). Without it a
         30 % thinner atmosphere than modelled leaves the limb ~1 m/s^2 short of its deceleration near
         the chute's terminal speed, five times the law's thrust margin: the lander braked 28 m past
-        the hover altitude in a dispersed sweep flight."""
+        the hover altitude in a dispersed sweep flight.
+
+        Each period also gives the fit of the drag's scale and the wind over the whole coast
+        (:class:`.calibration.ChuteDragFit`, solved at the powered descent's start, :meth:`_fit_air`):
+        the measured drag vector, the thrust commanded over the period taken off. The MPC plans on
+        that fit; the scheduled law flies on the scalar above."""
         h = self._altitude(state)
         climb = self._climb_rate(state)
         prev, self._last_climb = self._last_climb, (t, climb)
+        before, self._last_air = self._last_air, (t, np.array(state.v_W, float), np.array(state.r_W, float), float(state.fuel))
+        if before is not None and t > before[0]:
+            dt = t - before[0]
+            r_mid = 0.5 * (state.r_W + before[2])
+            rn = float(np.linalg.norm(r_mid))
+            mass = self.vehicle.mass(0.5 * (state.fuel + before[3]))
+            drag_W = (state.v_W - before[1]) / dt + c.GM_MARS * r_mid / rn**3 - self._coast_thrust_W / mass
+            k = self._drag_k * MARS_ATMOSPHERE.density(rn - c.MARS_RADIUS) / mass
+            self.air_fit.add(0.5 * (state.v_W + before[1]), drag_W, k)
         if prev is None or t <= prev[0] or climb > -5.0:
             return
         r = c.MARS_RADIUS + h

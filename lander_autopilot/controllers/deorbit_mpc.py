@@ -7,8 +7,9 @@ would start braking under the open chute) this law
 
 1. builds the point-mass problem of the rest of the descent in the local frame of the handover
    point (:func:`handover_problem`: ENU at the handover position, origin on the surface below it,
-   z = altitude; thrust, fuel flow and tilt limit of the vehicle; the open chute's and the body's
-   drag) and
+   z = altitude; thrust, fuel flow and tilt limit of the vehicle, the thrust scaled as measured in
+   the de-orbit burn; the open chute's and the body's drag, scaled and in the wind as fitted under
+   the chute, :mod:`.calibration`) and
 2. flies it with :class:`lander_autopilot.guidance.descent_mpc.DescentMpc`: each control period a
    second-order-cone programme (cvxpy + Clarabel) re-plans the minimum-fuel descent from the measured
    state to rest at the demand by the end time of the minimum-fuel reference
@@ -58,7 +59,8 @@ def local_frame(r_W: np.ndarray) -> np.ndarray:
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
                      max_tilt: float = 0.7, chute_open: bool = True,
                      surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY,
-                     wind_W: np.ndarray | None = None, drag_scale: float = 1.0) -> tuple[DescentProblem, np.ndarray]:
+                     wind_W: np.ndarray | None = None, drag_scale: float = 1.0,
+                     thrust_scale: float = 1.0) -> tuple[DescentProblem, np.ndarray]:
     """The minimum-fuel problem from a handover state to rest at ``demand_altitude`` [m], and its frame.
 
     Local frame: ENU at ``r_W`` (rows of the returned 3x3 ``L``), origin on the surface below,
@@ -68,11 +70,13 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     and, with ``chute_open``, the parachute's (``1/2 Cd A`` each, exponential atmosphere of
     ``surface_density`` [kg/m^3]: the nominal one, or a dispersed flight's true one for its yardstick;
     ``wind_W`` [m/s, world] a steady wind, none by default; ``drag_scale`` multiplies the modelled
-    drag: the flown law's measured / modelled drag under the chute).
+    drag: the flown law's measured / modelled drag under the chute; ``thrust_scale`` multiplies the
+    thrust at the same fuel flow: the flown law's measured / modelled thrust acceleration,
+    :class:`.calibration.ThrustCalibration`).
     """
     L = local_frame(r_W)
     h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
-    axial = vertical_thrust(vehicle)
+    axial = vertical_thrust(vehicle) * thrust_scale
     mdot = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)
     limits = DescentLimits(rho_max=axial, alpha=mdot / axial, dry_mass=vehicle.dry_mass, max_tilt=max_tilt)
     k = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA
@@ -94,10 +98,18 @@ class DeorbitMpcController(DeorbitController):
     (tilt limit of the thrust in the QP), ``glide_slope`` [rad] (0: none; the hover has no landing
     spot, so it only applies with a target point), ``reference_steps`` (nodes of the reference),
     ``reference_thrust`` (fraction of the thrust the reference is solved at, which fixes the end
-    time: 0.95, so the braking starts with 4 % in hand for what the attitude law takes under the
-    canopy in a wind; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md;
-    each period the QP's thrust bound is also scaled by the collective the attitude law leaves,
-    :class:`.combined.CollectiveHeadroom`, learnt in the periods where it binds);
+    time: 0.94; at 0.99 the dispersed descents ended 3-11 m under the hover, docs/deorbit.md) and
+    ``plan_reserve`` (0.04: the share of the QP's thrust bound its plan keeps in hand from 1 s
+    ahead on, :class:`.guidance.descent_mpc.MpcSettings`). The QP brakes as late as its bound lets
+    it, so a lower reference alone bought nothing: it spent the slack on braking later and rode its
+    bound again. Kept in hand, the reserve is there when a gust or the drag model's error leaves
+    the fall behind the plan; it must leave the plan some room above the reference (0.99 x 0.96 =
+    0.95 against 0.94): with none (0.95 and 0.04) the plan could not meet the reference's end
+    time and the replayed flights went to 1.3-1.5 x. Each period the QP's thrust bound is also
+    scaled by the collective the attitude law leaves (:class:`.combined.CollectiveHeadroom`,
+    learnt in the periods where it binds) and its model takes the thrust measured in the burn
+    (:class:`.calibration.ThrustCalibration`) and the drag scale and wind fitted under the chute
+    (:class:`.calibration.ChuteDragFit`);
     ``attitude_lag`` [s] (how late the QP expects the thrust axis to follow its command; default
     ``ATTITUDE_LAG``, the mean delay of the thrust axis's attitude loop: planned as instant, the QP's
     late horizontal braking was flown ~1 s behind and the hover began with 0.5-1 m/s of drift);
@@ -115,9 +127,16 @@ class DeorbitMpcController(DeorbitController):
             raise ControllerError(f"{name}: expected a fraction in (0, 1], got {value!r}")
         return x
 
+    @staticmethod
+    def _share(name: str, value: object) -> float:
+        x = non_negative_param(name, value)
+        if x >= 1.0:
+            raise ControllerError(f"{name}: expected a share in [0, 1), got {value!r}")
+        return x
+
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
-                 glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.95,
-                 attitude_lag: float | None = None,
+                 glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.94,
+                 attitude_lag: float | None = None, plan_reserve: float = 0.04,
                  slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
@@ -141,7 +160,8 @@ class DeorbitMpcController(DeorbitController):
         self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
                                     reference_steps=reference_steps,
                                     reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust),
-                                    attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag))
+                                    attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag),
+                                    plan_reserve=self._share("plan_reserve", plan_reserve))
         self.axial = vertical_thrust(vehicle)
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
@@ -182,10 +202,11 @@ class DeorbitMpcController(DeorbitController):
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
         diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
         top = float(diff.max())
+        axial = self.axial * self.thrust_calibration.scale  # the axial thrust the burn measured
         if t > self._t_last:
-            self.headroom.update(top, mag / self.axial > 1.0 - top, t - self._t_last)
+            self.headroom.update(top, mag / axial > 1.0 - top, t - self._t_last)
         self._t_last = t
-        u = saturate(mix_with_attitude_priority(mag / self.axial, diff))
+        u = saturate(mix_with_attitude_priority(mag / axial, diff))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
 
     def _start(self, t: float, state: StateView, demand: Demand) -> None:
@@ -196,9 +217,14 @@ class DeorbitMpcController(DeorbitController):
         # out for free and left it to the last second, 4-5 m/s at the hover in a 5 m/s wind).
         up = state.r_W / float(np.linalg.norm(state.r_W))
         wind_W = state.v_W - float(state.v_W @ up) * up if self._chute_open else None
+        drag_scale = min(self.descent.drag_scale, 1.0)
+        if self.air is not None:
+            # the fit over the coast under the chute (DeorbitController._fit_air): the wind's vertical
+            # part too, which a scale learnt at the canopy's terminal speed folds in wrongly below it
+            wind_W, drag_scale = self.air.wind_W, self.air.scale
         problem, L = handover_problem(self.vehicle, state.r_W, state.v_W, state.fuel, demand.altitude,
                                       max_tilt=self.max_tilt, chute_open=self._chute_open, wind_W=wind_W,
-                                      drag_scale=min(self.descent.drag_scale, 1.0))
+                                      drag_scale=drag_scale, thrust_scale=self.thrust_calibration.scale)
         limits = DescentLimits(rho_max=problem.limits.rho_max, alpha=problem.limits.alpha,
                                dry_mass=problem.limits.dry_mass, max_tilt=self.max_tilt, glide_slope=self.glide_slope)
         t0 = time.perf_counter()

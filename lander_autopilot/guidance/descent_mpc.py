@@ -11,12 +11,19 @@ each step::
     minimise   sum_k m_k h |a_k|  +  W |end miss|_1                 (impulse = fuel / alpha; exact penalty)
     subject to v_{k+1} = v_k + h (a_k + a_D(v_k, v_{k+1}) + g_L),   r_{k+1} = r_k + h (v_k + v_{k+1}) / 2,
                x_0 = the measured state,
-               |a_k| <= f rho_max / m_k,   a_k . z >= |a_k| cos(max_tilt),   (thrust and pointing limits)
+               |a_k| <= f (1 - r_k) rho_max / m_k,   a_k . z >= |a_k| cos(max_tilt),   (thrust, pointing)
                |r_k - target|_xy tan(glide_slope) <= (r_k - target)_z    (glide slope),
                r_k . z >= 0                                             (never below the surface)
 
 ``m_k`` is the mass predicted as the reference burns, ``f`` the plan's thrust fraction (0.99: 1 % of
-authority for what the model does not know). The end miss is the distance from rest at the target
+authority for what the model does not know), ``r_k = plan_reserve min(k h / reserve_time, 1)`` the
+bound's tightening with the time ahead (none by default): the step flown now may use the whole
+bound, the plan's later steps keep the reserve in hand, so that a fall that gets behind the plan
+(a gust, the drag model's error) finds the thrust to catch up. The fuel-optimal QP brakes as late
+as its bound allows, so any slack between its bound and the reference is spent on braking later,
+and only a reserve it may not plan on stays a margin (the de-orbit law keeps 4 %,
+:class:`..controllers.deorbit_mpc.DeorbitMpcController`). The command is the plan's mean over the
+period it is flown (``hold_time``): at the end the steps are shorter than the period. The end miss is the distance from rest at the target
 (its altitude only, with ``free_horizontal``): an exact (L1) penalty, so the end is met exactly when
 it can be and the nearest miss is flown when it cannot, and every period's problem is feasible.
 
@@ -29,9 +36,8 @@ at full thrust (drag at the step's start did, by ~9 N, and the plan ended 1-2 m 
 The reference is the minimum-fuel descent from the handover state (:func:`.fuel_optimal.solve`,
 lossless convexification, free final time), solved once at ``reference_thrust_fraction`` of the
 thrust: it fixes the end time ``t_f`` and the drag's linearisation points. Under the chute the
-de-orbit law solves it at 0.95 (:class:`..controllers.deorbit_mpc.DeorbitMpcController`'s
-``reference_thrust``): flown at up to 0.99, the braking then starts with 4 % of the thrust in hand,
-which the attitude law takes under the canopy in a wind. Without drag the longer end time is pure
+de-orbit law solves it at 0.94 (:class:`..controllers.deorbit_mpc.DeorbitMpcController`'s
+``reference_thrust``), under its plan's bound with the reserve kept (0.99 x 0.96). Without drag the longer end time is pure
 gravity loss (1.095 x against 1.03 x at 0.99 in ``test_descent_mpc.py``), hence the default 0.99. The end does not recede
 (a receding end gave the plan slack: it eased off, arrived late and low, 1.06 x); only in its last
 ``min_time_to_go`` does it.
@@ -75,7 +81,14 @@ class MpcSettings:
     reference_thrust_fraction: float = 0.99  # the reference's thrust bound, of rho_max (sets the end time)
     reference_steps: int = 60
     plan_thrust_fraction: float = 0.99  # the QP's thrust bound, of rho_max: authority left for the feedback
+    plan_reserve: float = 0.0  # share of that bound the plan keeps in reserve, reserve_time ahead and later
+    reserve_time: float = 1.0  # s: the reserve grows linearly to plan_reserve over this much of the plan
     min_time_to_go: float = 0.3  # s: the shortest horizon, once the reference's end is (nearly) passed
+    # s: how long the command is flown (the control period). Where the plan's steps are shorter (at
+    # the end: min_time_to_go / H, 15 ms), the command is the plan's mean over that time: its first
+    # 15 ms step alone, flown for 100 ms, let the fall run on (a light first step before full thrust)
+    # and the full thrust after it overshot into a climb (0.75 m/s; 1.054 x with a 4 % plan_reserve)
+    hold_time: float = 0.1
     end_penalty: float = 100.0  # end miss weight, x mass: impulse [kg m/s] per m (or m/s) missed, per kg
     attitude_lag: float = 0.0  # s: time constant of the thrust axis following the command (0: instant)
 
@@ -86,7 +99,9 @@ class MpcSettings:
             raise GuidanceError(f"reference_thrust_fraction must be in (0, 1], got {self.reference_thrust_fraction}")
         if not (0 < self.plan_thrust_fraction <= 1):
             raise GuidanceError(f"plan_thrust_fraction must be in (0, 1], got {self.plan_thrust_fraction}")
-        for name in ("min_time_to_go", "end_penalty"):
+        if not (0 <= self.plan_reserve < 1):
+            raise GuidanceError(f"plan_reserve must be in [0, 1), got {self.plan_reserve}")
+        for name in ("min_time_to_go", "hold_time", "end_penalty", "reserve_time"):
             if not (getattr(self, name) > 0):
                 raise GuidanceError(f"{name} must be positive, got {getattr(self, name)}")
         if not (self.attitude_lag >= 0):
@@ -229,7 +244,11 @@ class DescentMpc:
         m_k = np.maximum(mass - (ref_mass[0] - ref_mass), self.limits.dry_mass)  # burning as the reference does
         self._h.value, self._hh.value = h, h * h / 2
         self._x0.value = np.r_[position_L, velocity_L]
-        self._amax.value = st.plan_thrust_fraction * available * self.limits.rho_max / m_k
+        amax = st.plan_thrust_fraction * available * self.limits.rho_max / m_k
+        # tightened with the time ahead (what a disturbance can have done by then grows with it): the
+        # step flown now may use the whole bound, a step reserve_time or more ahead keeps plan_reserve
+        amax *= 1.0 - st.plan_reserve * np.minimum(h * np.arange(H) / st.reserve_time, 1.0)
+        self._amax.value = amax
         self._fuel_w.value = m_k * h
         self._end_w.value = st.end_penalty * mass
         if st.attitude_lag > 0:
@@ -258,7 +277,8 @@ class DescentMpc:
             ok = False
         self.stats.solve_times.append(time.perf_counter() - t0)
         if ok:
-            self._last = np.array(self._a.value[0])
+            n = min(max(int(round(st.hold_time / h)), 1), H)  # the plan's steps the command is flown over
+            self._last = np.array(self._a.value[:n].mean(axis=0))
         else:
             self.stats.failures += 1  # hold the last command: the next period tries again
         return self._last * mass

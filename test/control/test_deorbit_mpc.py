@@ -111,6 +111,9 @@ def test_bad_mpc_parameters_name_the_key():
     for bad in (0.0, 1.2):
         with pytest.raises(ControllerError, match="reference_thrust"):
             make_controller("deorbit-mpc", sc.vehicle, reference_thrust=bad)
+    for bad in (-0.1, 1.0, "all"):
+        with pytest.raises(ControllerError, match="plan_reserve"):
+            make_controller("deorbit-mpc", sc.vehicle, plan_reserve=bad)
     for bad in (-0.5, float("nan"), "slow"):
         with pytest.raises(ControllerError, match="attitude_lag"):
             make_controller("deorbit-mpc", sc.vehicle, attitude_lag=bad)

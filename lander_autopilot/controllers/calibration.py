@@ -26,8 +26,9 @@ class ThrustCalibration:
     commanded over that period (``T_v`` times the mean throttle flown) and ``m`` the modelled mass,
     is what the laws' model expected. ``scale``, the ratio of their sums over the burn, folds a
     thrust off its rating and a dry mass off the model into one number (as the drag scale does
-    under the chute). The descent laws brake on it (:meth:`.deorbit.DescentToAltitude.calibrate_thrust`,
-    the MPC's thrust bound). Clipped to ``[1 - LIMIT, 1 + LIMIT]``: further off is a fault, not a
+    under the chute). The MPC's powered descent plans on it (its thrust bound and throttle
+    conversion, :class:`.deorbit_mpc.DeorbitMpcController`); the scheduled law does not use it yet.
+    Clipped to ``[1 - LIMIT, 1 + LIMIT]``: further off is a fault, not a
     dispersion.
     """
 
@@ -76,7 +77,8 @@ class ChuteDragFit:
     braking below by 0.2-0.35 m/s^2 with 1.1 m/s of downdraft (200 km sweep, case 188), and the
     MPC, braking on it at its thrust bound, stopped the fall 7 m under the hover. The fall from the
     chute's opening (~180 m/s, inclined) to its terminal speed separates the two: on that case the
-    fit gives ``s`` 0.864 and 1.14 m/s of downdraft (true: 0.871, 1.13). Solved by Gauss-Newton
+    fit flown in the loop gives ``s`` 0.866 and 1.18 m/s of downdraft (true: 0.866 with the dry
+    mass's share, 1.13). Solved by Gauss-Newton
     from ``scale0`` and ``wind0`` (at most ``MAX_ITERATIONS``). Over a fall at one speed (a coast
     begun near the canopy's terminal speed, e.g. a flight started under an open chute) the scale
     and the wind's part along the fall are one number and the fit would trade one for the other on
@@ -90,9 +92,6 @@ class ChuteDragFit:
     def add(self, velocity_W: np.ndarray, drag_W: np.ndarray, k: float) -> None:
         """One period: mean velocity [m/s, world], measured drag acceleration [m/s^2, world], ``K`` [1/m]."""
         self._rows.append((float(k), *(float(x) for x in velocity_W), *(float(x) for x in drag_W)))
-
-    def __len__(self) -> int:
-        return len(self._rows)
 
     def solve(self, scale0: float, wind0_W: np.ndarray) -> AirFit | None:
         """The fit (``None`` with fewer than 8 periods, speeds spanning less than ``MIN_SPAN``, or if it

@@ -372,7 +372,7 @@ class DeorbitController(Controller):
         self.phase = phase
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
-        burning = self.phase is Phase.BURN
+        burning = self.phase is Phase.BURN  # before command(): the burn's last period ends inside it
         out = saturate(self.command(t, state, demand))
         if burning or self.phase is Phase.BURN:
             self._learn_thrust(t, state, self.descent.T_v * float(np.mean(out.throttles)) if self.phase is Phase.BURN else 0.0)

@@ -27,7 +27,8 @@ class ThrustCalibration:
     is what the laws' model expected. ``scale``, the ratio of their sums over the burn, folds a
     thrust off its rating and a dry mass off the model into one number (as the drag scale does
     under the chute). The MPC's powered descent plans on it (its thrust bound and throttle
-    conversion, :class:`.deorbit_mpc.DeorbitMpcController`); the scheduled law does not use it yet.
+    conversion, :class:`.deorbit_mpc.DeorbitMpcController`), and the scheduled law's braking limb and
+    collective use it from the powered descent's start (:class:`.deorbit.DescentToAltitude`).
     Clipped to ``[1 - LIMIT, 1 + LIMIT]``: further off is a fault, not a
     dispersion.
     """

@@ -163,6 +163,10 @@ class DeorbitMpcController(DeorbitController):
                                     attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag),
                                     plan_reserve=self._share("plan_reserve", plan_reserve))
         self.axial = vertical_thrust(vehicle)
+        # The handover is where the descent law's braking curve (at brake_fraction) is reached; the
+        # QP plans to the demand itself, so that curve ends there too, not stop_above over it (the
+        # scheduled law's margin for its own braking; it would move the MPC's handover).
+        self.descent.stop_above = 0.0
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
         self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(MPC_ATTITUDE_POLE,) * 6)

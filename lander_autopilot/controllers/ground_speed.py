@@ -130,6 +130,18 @@ class GroundSpeedController(SumController):
         thrust to tilt, and chasing the wind with attitude alone only burns fuel)."""
         return True
 
+    def horizontal_acceleration(self, state: StateView, L: np.ndarray, h: float, v_L: np.ndarray,
+                                error: np.ndarray) -> np.ndarray:
+        """Horizontal thrust acceleration asked for, ENU ``(east, north)`` [m/s^2], before the tilt
+        limit: the PI law on the velocity error ``error`` (``L``: the local frame's axes in world
+        coordinates, rows; ``h`` the altitude [m]; ``v_L`` the ENU velocity [m/s])."""
+        return -self.k_p * error - self.k_i * self._integral
+
+    def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
+        """A correction to the thrust axis asked of the attitude law, ENU ``(east, north)`` as the axis's
+        horizontal over vertical component, given the one ``wanted`` (the same form); None: none (here)."""
+        return None
+
     def velocity_demand(self, demand: Demand) -> tuple[float, float]:
         """Horizontal velocity to track, ENU ``(east, north)`` [m/s]."""
         return demand.velocity if demand.velocity is not None else (0.0, 0.0)
@@ -148,7 +160,7 @@ class GroundSpeedController(SumController):
         ve, vn = self.velocity_demand(demand)
         e = np.array([v[0] - ve, v[1] - vn])
         hold = self.holds_ground_speed()
-        a_h = -self.k_p * e - self.k_i * self._integral if hold else np.zeros(2)
+        a_h = self.horizontal_acceleration(state, L, h, v, e) if hold else np.zeros(2)
         # Tilt limit: |a_h| <= (g + a_U) tan(max tilt). a_up may be ~0 (coasting): keep a floor so
         # the demand direction stays defined.
         lift = max(a_up, 0.2 * GM_MARS / (r * r))
@@ -163,6 +175,9 @@ class GroundSpeedController(SumController):
                 self._integral += e * dt
         self._t_last = t
         self.tilt_clipped = clipped
+        bias = self.axis_bias(t, state, L, a_h / lift)
+        if bias is not None:
+            a_h = a_h + lift * bias
         # Demand attitude: body z along f = a_h + lift up; body x as near east as possible.
         f = L.T @ np.array([a_h[0], a_h[1], lift])
         b3 = f / float(np.linalg.norm(f))

@@ -13,6 +13,8 @@ from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_a
 from lander_autopilot.controllers.deorbit import DeorbitController, HoverCapture
 from lander_autopilot.controllers.ground_speed import GroundSpeedController
 from lander_sim.physics import constants as c
+from lander_sim.physics.rotation import matrix_to_quat
+from lander_sim.physics.state import StateView
 from lander_sim.scenes.vehicles import lander
 
 DEMAND = Demand(altitude=500.0)
@@ -46,6 +48,48 @@ def test_braking_limb_runs_on_the_collective_left():
     law.headroom.share = 0.08
     assert law.braking_acceleration(mass, g) == pytest.approx(law.brake_fraction * (0.92 * law.T_v / mass - g))
     assert law.braking_acceleration(mass, g) < full
+
+
+def test_braking_limb_ends_at_rest_inside_the_band_above_the_floor():
+    """The limb's descent-rate demand is 0 at ``floor + stop_above`` (inside the 2 m band), and climbs back under it."""
+    law = DeorbitController(lander("canted")).descent
+    law.floor, law.mode = DEMAND.altitude, "braking"
+    stop = DEMAND.altitude + law.stop_above
+    assert 0.0 < law.stop_above < 2.0
+    r = c.MARS_RADIUS + stop
+    g = c.GM_MARS / (r * r)
+    # at rest at the limb's end: gravity alone is asked for (no velocity error, no deceleration fed forward)
+    assert law.vertical_acceleration(0.0, stop, 0.0, DEMAND) == pytest.approx(g, rel=1e-12)
+    # half a metre under it, at rest: a climb is asked for (RETURN_RATE per metre); above it, a descent
+    assert law.vertical_acceleration(0.0, stop - 0.5, 0.0, DEMAND) > g
+    assert law.vertical_acceleration(0.0, stop + 5.0, 0.0, DEMAND) < g
+
+
+def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded():
+    """Integral action on the thrust axis while braking (DescentToAltitude.axis_bias): a steady
+    shortfall of the axis flown grows the correction at ``shortfall / AXIS_TIME`` a second, up to
+    ``AXIS_MAX``; none while coasting."""
+    law = DeorbitController(lander("canted")).descent
+    L = np.eye(3)  # local ENU axes (rows) in world coordinates: here the world's own
+    tilt = 0.05  # the axis flown: 0.05 rad toward east (rows: body axes in world coordinates)
+    R = np.array([[math.cos(tilt), 0.0, -math.sin(tilt)], [0.0, 1.0, 0.0], [math.sin(tilt), 0.0, math.cos(tilt)]])
+    q = matrix_to_quat(R)
+    state = StateView(t=0.0, r_W=np.array([0.0, 0.0, c.MARS_RADIUS + 500.0]), v_W=np.zeros(3), q=q,
+                      euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
+    flown = math.tan(tilt)
+    wanted = np.array([0.1, -0.02])
+    law.floor, law.mode = DEMAND.altitude, "coast"
+    assert law.axis_bias(0.0, state, L, wanted) is None
+    law.mode = "braking"
+    assert np.array_equal(law.axis_bias(0.0, state, L, wanted), np.zeros(2))  # no history yet
+    bias = law.axis_bias(0.1, state, L, wanted)
+    expected = 0.1 / law.AXIS_TIME * (wanted - np.array([flown, 0.0]))
+    assert bias == pytest.approx(expected, rel=1e-9)
+    for k in range(2, 200):
+        bias = law.axis_bias(0.1 * k, state, L, wanted)
+    assert float(np.linalg.norm(bias)) == pytest.approx(law.AXIS_MAX, rel=1e-12)
+    law.mode = "coast"
+    assert law.axis_bias(20.0, state, L, wanted) is None
 
 
 def _capture(law: GroundSpeedController, e0: float, t_end: float = 20.0, dt: float = 0.01) -> tuple[float, float]:

@@ -18,7 +18,7 @@ import pytest
 
 from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.combined import CollectiveHeadroom
-from lander_autopilot.controllers.deorbit import Phase
+from lander_autopilot.controllers.deorbit import DescentToAltitude, Phase
 from lander_sim.physics import constants as c
 from lander_sim.physics.state import StateView
 from lander_sim.simulation import Simulation
@@ -117,17 +117,47 @@ def _braking_end(case_index: int) -> tuple[float, float]:
 @pytest.mark.slow  # two flights, ~20 s
 def test_braking_on_the_collective_the_attitude_law_leaves_stops_in_the_band(monkeypatch):
     """Case 196 (5.4 m/s of wind): under the canopy the attitude law holds one thruster at full
-    throttle through the braking. Planned on the full collective, the limb ran out of thrust and the
-    fall stopped 4.7 m under the hover (the hover law then climbed back on hover thrust: 1.37 x the
-    optimum's fuel in the sweep); on the collective left, it stops within the band."""
+    throttle through the braking. Planned on the full collective and aimed at the demand itself (the
+    law of stop 24), the limb ran out of thrust and the fall stopped 4.7 m under the hover (the hover
+    law then climbed back on hover thrust: 1.37 x the optimum's fuel in the sweep); on the collective
+    left (learnt at the mixer's floor too in a wind over FLOOR_LEARN_WIND) and aimed stop_above over
+    the demand, it stops within the band."""
     band = load_spec(SPEC).end.hover_band
     error, share = _braking_end(196)
     monkeypatch.setattr(CollectiveHeadroom, "update", lambda self, *args: None)  # the full collective, as before
+    monkeypatch.setattr(DescentToAltitude, "stop_above", 0.0)  # and the limb aimed at the demand
     error_full, share_full = _braking_end(196)
-    print(f"braking ends {error_full:+.2f} m (full collective) -> {error:+.2f} m (share {share:.3f} learnt)")
+    print(f"braking ends {error_full:+.2f} m (full collective, aimed at the demand) -> {error:+.2f} m (share {share:.3f} learnt)")
     assert share_full == 0.0 and share > 0.02
     assert error_full < -band
     assert -band <= error <= band
+
+
+def _hover_start(case_index: int) -> tuple[float, float]:
+    """Scheduled law, core-only: (altitude error [m], ground speed [m/s]) where the `hover` phase begins."""
+    for s, ctrl, _sim in _flown(case_index, 0):
+        if ctrl.phase is Phase.HOVER:
+            up = s.r_W / float(np.linalg.norm(s.r_W))
+            climb = float(s.v_W @ up)
+            return float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude, float(np.linalg.norm(s.v_W - climb * up))
+    raise AssertionError("no hover")
+
+
+@pytest.mark.slow  # two flights, ~20 s
+def test_thrust_axis_correction_takes_the_drift_out_by_the_hover(monkeypatch):
+    """Case 38 (2.5 m/s of drift under the canopy, 2.9 m/s of horizontal wind): through the braking
+    the attitude law flew the thrust axis at under half the tilt asked for (the canopy's torque
+    against a proportional-derivative law), and the hover began with 0.36 m/s of ground speed, 1.3 s
+    of hover thrust to the band at rest (1.15 x the optimum's fuel). With integral action on the
+    axis (DescentToAltitude.axis_bias) the hover begins within its own speed band."""
+    spec = load_spec(SPEC)
+    error, drift = _hover_start(38)
+    monkeypatch.setattr(DescentToAltitude, "axis_bias", lambda self, *args: None)
+    error_plain, drift_plain = _hover_start(38)
+    print(f"ground speed at the hover {drift_plain:.3f} -> {drift:.3f} m/s (altitude error {error_plain:+.2f} -> {error:+.2f} m)")
+    assert drift_plain > spec.end.hover_speed
+    assert drift < spec.end.hover_speed
+    assert abs(error) <= spec.end.hover_band
 
 
 def _mpc_braking_end(case_index: int, **params: object) -> tuple[float, Any]:

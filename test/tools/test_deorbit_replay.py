@@ -1,0 +1,45 @@
+"""bench/deorbit_replay.py: a case replayed from its snapshot under the chute is the sweep's flight,
+bit for bit (the tool's own --check, on one 200 km case), and it says when a snapshot is missing."""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEC = ROOT / "sweeps" / "deorbit-200km.yaml"
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("deorbit_replay", ROOT / "bench" / "deorbit_replay.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses and the worker pool look the module up by name
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.slow  # three ~2000 s flights core-only, ~25 s
+def test_replay_from_the_snapshot_is_the_sweeps_flight(tmp_path, capsys):
+    tool = _tool()
+    folder = str(tmp_path / "snapshots")
+    args = [str(SPEC), "--controller", "scheduled", "--folder", folder, "--cases", "7", "--workers", "1"]
+    assert tool.main(["make", *args]) == 0
+    assert (tmp_path / "snapshots" / "7.pkl").exists()
+    made = capsys.readouterr().out
+    # replay, then --check flies case 7 whole with the sweep's fly_case: exit 0 only if the fuel_ratio is the same
+    assert tool.main(["replay", *args, "--check", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "check case 7:" in out and ": same" in out
+    # the replay's summary line equals the make run's (the same flight from the same instant)
+    line = next(x for x in made.splitlines() if x.startswith("fuel_ratio"))
+    assert line in out
+
+
+def test_a_case_without_its_snapshot_is_reported_not_flown(tmp_path, capsys):
+    tool = _tool()
+    code = tool.main(["replay", str(SPEC), "--folder", str(tmp_path), "--cases", "3", "--workers", "1"])
+    assert code == 0
+    assert "1 flights: 1 no snapshot" in capsys.readouterr().out

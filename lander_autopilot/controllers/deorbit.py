@@ -173,6 +173,11 @@ class DescentToAltitude(LandingController):
         self._axis_bias = np.zeros(2)  # axis_bias's integral, ENU (east, north) over up
         self._axis_last: tuple[float, np.ndarray] | None = None  # (t, the axis wanted then)
 
+    @property
+    def wind_W(self) -> np.ndarray:
+        """The wind the braking plans on [m/s, world]: the fit under the chute, else the drift."""
+        return self.drift_W if self.air is None else self.air.wind_W
+
     def braking_acceleration(self, mass: float, g: float) -> float:
         """The limb's ``a_b`` on the collective the attitude law leaves (:class:`.combined.CollectiveHeadroom`)."""
         return self.brake_fraction * max(self.headroom.available * self.T_v / mass - g, 0.0)
@@ -251,7 +256,7 @@ class DescentToAltitude(LandingController):
         if self.drag_k > 0.0:
             air = self.air
             scale = self.drag_scale if air is None else air.scale
-            rel = v_L - L @ (self.drift_W if air is None else air.wind_W)
+            rel = v_L - L @ self.wind_W
             cd = self.drag_k * scale * MARS_ATMOSPHERE.density(h) / self._mass
             drag = -cd * float(np.linalg.norm(rel)) * rel[:2]
         z_L = L @ quat_to_matrix(state.q)[2]  # the thrust axis flown, ENU
@@ -607,7 +612,7 @@ class DeorbitController(Controller):
         self.air = self.air_fit.solve(self.descent.drag_scale, drift)
         self.descent.air = self.air
         self.descent.drift_W = drift
-        w = drift if self.air is None else self.air.wind_W
+        w = self.descent.wind_W
         self.descent.wind_h = float(np.linalg.norm(w - float(w @ up) * up))
 
     def _learn_drag(self, t: float, state: StateView) -> None:

@@ -63,6 +63,7 @@ from lander_sim.physics.vehicle import Vehicle
 
 from ..design.altitude import vertical_thrust
 from ..design.schedule import GainSchedule, schedule_descent_rate
+from ..design.translational import local_frame
 from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, fly_entry, plan
 from ._params import positive_param
 from .attitude import QuaternionAttitudeController
@@ -252,17 +253,24 @@ class DescentToAltitude(LandingController):
         if self.floor <= 0.0 or self.mode == "coast":
             return super().horizontal_acceleration(state, L, h, v_L, error)
         self._integral[:] = 0.0
-        drag = np.zeros(2)
-        if self.drag_k > 0.0:
-            air = self.air
-            scale = self.drag_scale if air is None else air.scale
-            rel = v_L - L @ self.wind_W
-            cd = self.drag_k * scale * MARS_ATMOSPHERE.density(h) / self._mass
-            drag = -cd * float(np.linalg.norm(rel)) * rel[:2]
+        drag = self.horizontal_drag(L, h, v_L)
         z_L = L @ quat_to_matrix(state.q)[2]  # the thrust axis flown, ENU
         flown = self._a_up * z_L[:2] / max(float(z_L[2]), 0.5) + drag
         tau = max(self._time_to_go - self.SETTLE, self.TAU_MIN)
         return -(error + self.LAG * flown) / tau - drag
+
+    def horizontal_drag(self, L: np.ndarray, h: float, v_L: np.ndarray) -> np.ndarray:
+        """The drag's horizontal acceleration, ENU ``(east, north)`` [m/s^2], at altitude ``h`` [m] and
+        ENU velocity ``v_L`` [m/s] (``L``: the local frame's axes in world coordinates, rows):
+        ``-s K rho |v - w| (v - w)`` with the air fitted under the chute (:meth:`horizontal_acceleration`);
+        zero while the chute is packed (``drag_k`` 0)."""
+        if self.drag_k <= 0.0:
+            return np.zeros(2)
+        air = self.air
+        scale = self.drag_scale if air is None else air.scale
+        rel = v_L - L @ self.wind_W
+        cd = self.drag_k * scale * MARS_ATMOSPHERE.density(h) / self._mass
+        return -cd * float(np.linalg.norm(rel)) * rel[:2]
 
     def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
         """Braking: integral action on the thrust axis the attitude law flies against the one wanted.
@@ -317,9 +325,19 @@ class HoverCapture(GroundSpeedController):
     a 1 m error at up to 0.5 m/s: a lander already at rest in the band was set moving again and
     came to rest only at the demand, 1.5-2.5 s of hover thrust (~5 % of the optimum's fuel a
     second) in the 200 km sweep. Here the climb-rate demand is ``-k e`` (``e`` the altitude error)
-    capped at ``APPROACH * speed`` inside the band, and outside it by a braking curve of deceleration
-    ``CAPTURE_ACCEL`` ending at the band's edge at that speed; the thrust acceleration along up is
-    ``g + RATE_GAIN (v_d - h')``. The horizontal loop is the ground-speed law's.
+    capped inside the band at ``APPROACH * speed`` and at what the ground speed ``v_h`` leaves of
+    ``AT_REST * speed``, ``sqrt((AT_REST speed)^2 - v_h^2)`` (0 once the drift alone is that fast:
+    a descent at 0.1 m/s with 0.19 m/s of drift kept the lander out of the band's speed), and outside
+    it by a braking curve of deceleration ``CAPTURE_ACCEL`` ending at the band's edge at that speed;
+    the thrust acceleration along up is ``g + RATE_GAIN (v_d - h')``.
+
+    The horizontal loop is the ground-speed law's, its integral preset at the handover to hold
+    against the drag at rest in the wind fitted under the chute (:meth:`take_over`). Started from
+    zero, the wind set the lander drifting faster as the hover began (200 km sweep's case 161:
+    0.17 -> 0.24 m/s over 1.5 s), 3.3 s of hover thrust to the band at rest. The braking's integral
+    action on the thrust axis (:meth:`DescentToAltitude.axis_bias`) is not carried on here: over
+    the 30 s hold it set the horizontal loop oscillating, growing, and 13 of the 200 km sweep's
+    200 flights fell from the hover (docs/deorbit.md, "The hover's take-over").
     """
 
     band: float = 2.0
@@ -328,10 +346,19 @@ class HoverCapture(GroundSpeedController):
     POSITION_GAIN: ClassVar[float] = 0.5  # [1/s] climb-rate demand per metre of error
     CAPTURE_ACCEL: ClassVar[float] = 1.0  # [m/s^2] braking into the band from outside it
     RATE_GAIN: ClassVar[float] = 2.0  # [1/s] thrust acceleration per m/s of climb-rate error
+    AT_REST: ClassVar[float] = 0.8  # of ``speed``: the total speed the approach inside the band keeps under
+
+    def take_over(self, drag: np.ndarray) -> None:
+        """Start from the braking's end with the horizontal loop's integral preset to hold against
+        ``drag`` (the drag's horizontal acceleration at rest, ENU [m/s^2]): the tilt the wind needs
+        is asked for at once."""
+        self._integral[:] = np.asarray(drag, float) / self.k_i
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
         e = h - demand.altitude
-        v_in = self.APPROACH * self.speed
+        # inside the band the climb rate allowed leaves room for the ground speed under ``speed``
+        v_h = math.hypot(float(self.v_local[0]), float(self.v_local[1]))
+        v_in = min(self.APPROACH * self.speed, math.sqrt(max((self.AT_REST * self.speed) ** 2 - v_h * v_h, 0.0)))
         outside = abs(e) - self.band
         cap = v_in if outside <= 0.0 else math.sqrt(v_in * v_in + 2.0 * self.CAPTURE_ACCEL * outside)
         v_d = -math.copysign(min(self.POSITION_GAIN * abs(e), cap), e)
@@ -494,6 +521,8 @@ class DeorbitController(Controller):
                                      requests=inner.requests)
             if self.phase is Phase.POWERED and demand.altitude > 0 and self._settled(state, demand):
                 self.hover.heading_W = self.landing.heading_W = self.descent.heading_W  # no yaw turn at the handover
+                L = local_frame(state.r_W)
+                self.hover.take_over(self.descent.horizontal_drag(L, self._altitude(state), np.zeros(3)))
                 self._to(t, Phase.HOVER, f"fall stopped within {self.hover_speed:g} m/s at {self._altitude(state) - demand.altitude:+.1f} m from the hover")
             else:
                 return ControlOutput(inner.throttles, inner.saturated, inner.unclipped, mode=self.phase.value,

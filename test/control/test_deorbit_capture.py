@@ -13,6 +13,7 @@ from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_a
 from lander_autopilot.controllers.deorbit import DeorbitController, HoverCapture
 from lander_autopilot.controllers.ground_speed import GroundSpeedController
 from lander_sim.physics import constants as c
+from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 from lander_sim.physics.rotation import matrix_to_quat
 from lander_sim.physics.state import StateView
 from lander_sim.scenes.vehicles import lander
@@ -125,3 +126,46 @@ def test_hover_capture_is_at_rest_in_the_band_at_once_and_stays_so():
     # and the braking curve's own bound: 4 m to the band at CAPTURE_ACCEL, twice the bang-bang time
     # with the rate loop's lag (1 / RATE_GAIN) on top
     assert caught < 2.0 * math.sqrt(4.0 / capture.CAPTURE_ACCEL) + 2.0 / capture.RATE_GAIN
+
+
+def test_hover_capture_keeps_the_climb_rate_inside_the_band_under_what_the_drift_leaves():
+    """Inside the band the climb rate allowed shrinks with the ground speed, so the total speed keeps
+    under ``AT_REST * speed``: at 0.18 m/s of drift (200 km sweep's case 161) the law holds the
+    altitude instead of descending at 0.1 m/s, 0.21 m/s in all, outside the band's speed."""
+    capture = HoverCapture(lander("canted"))
+    capture.band, capture.speed = 2.0, 0.2
+    h = DEMAND.altitude + 1.0
+    r = c.MARS_RADIUS + h
+    g = c.GM_MARS / (r * r)
+    # still air, at rest: the approach at APPROACH * speed (0.1 m/s) toward the demand
+    capture.v_local = np.zeros(3)
+    assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(
+        g + capture.RATE_GAIN * (-capture.APPROACH * capture.speed), rel=1e-12)
+    # 0.12 m/s of drift: what is left of AT_REST * speed (0.16 m/s), sqrt(0.16^2 - 0.12^2) ~ 0.106, caps
+    # nothing yet; at 0.15 m/s it caps the approach at sqrt(0.16^2 - 0.15^2) ~ 0.056 m/s
+    capture.v_local = np.array([0.09, -0.12, 0.0])  # ENU, 0.15 m/s
+    allowed = math.sqrt((capture.AT_REST * capture.speed) ** 2 - 0.15**2)
+    assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(g - capture.RATE_GAIN * allowed, rel=1e-9)
+    # 0.18 m/s: nothing left, the climb rate is brought to zero where it is
+    capture.v_local = np.array([0.0, -0.18, 0.0])
+    assert capture.vertical_acceleration(0.0, h, -0.16, DEMAND) == pytest.approx(g + capture.RATE_GAIN * 0.16, rel=1e-12)
+
+
+def test_hover_takes_over_the_wind_from_the_braking():
+    """At the handover the hover's horizontal loop starts holding against the drag at rest in the
+    wind the braking planned on (its integral preset), not from zero."""
+    controller = DeorbitController(lander("canted"))
+    law, hover = controller.descent, controller.hover
+    law.drag_k, law._mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
+    law.drift_W = np.array([0.0, -5.0, 0.0])  # no air fitted: the drift is the wind (world = ENU here)
+    L = np.eye(3)
+    h = 500.0
+    drag = law.horizontal_drag(L, h, np.zeros(3))
+    # at rest in a wind toward -north the drag pushes toward -north, as 1/2 rho Cd A w^2 / m
+    assert drag == pytest.approx([0.0, -20.0 * MARS_ATMOSPHERE.density(h) / 700.0 * 25.0], rel=1e-12)
+    state = StateView(t=0.0, r_W=np.array([0.0, 0.0, c.MARS_RADIUS + h]), v_W=np.zeros(3), q=np.array([1.0, 0.0, 0.0, 0.0]),
+                      euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
+    assert np.array_equal(hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)), np.zeros(2))
+    hover.take_over(drag)
+    # no velocity error: the thrust's horizontal acceleration asked for is the drag's opposite
+    assert hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)) == pytest.approx(-drag, rel=1e-12)

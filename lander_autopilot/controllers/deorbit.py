@@ -106,6 +106,97 @@ class PhaseLog:
     transitions: list[tuple[float, Phase, Phase, str]]
 
 
+class AxisIntegral:
+    """Integral action on the thrust axis the attitude law flies, against the one asked of it.
+
+    Under the chute's canopy the attitude law (proportional-derivative) flies the thrust axis short
+    of its demand: the canopy's torque pulls body +z back toward the airflow, a steady error. The
+    correction added to the axis asked for is ``(1 / time)`` times the integral of ``wanted - flown``
+    (each the axis's horizontal over its vertical part, ENU ``(east, north)``), at most ``limit`` in
+    norm. For a braking's few seconds only: held on through a 30 s hover it set the horizontal loop
+    oscillating (docs/deorbit.md, "The hover's take-over").
+    """
+
+    def __init__(self, time: float, limit: float) -> None:
+        self.time = time  # [s] integral time
+        self.limit = limit  # largest correction (horizontal over vertical part of the axis)
+        self.bias = np.zeros(2)  # the correction, ENU (east, north) over up
+        self._last: tuple[float, np.ndarray] | None = None  # (t, the axis wanted then)
+
+    def pause(self) -> None:
+        """Hold the correction; the next :meth:`update` starts a new interval."""
+        self._last = None
+
+    def update(self, t: float, q: np.ndarray, L: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """The correction at time ``t`` [s]: ``q`` the attitude (world -> body), ``L`` the local frame's
+        axes in world coordinates (rows), ``wanted`` the axis asked for before the correction."""
+        z_L = L @ quat_to_matrix(q)[2]
+        flown = z_L[:2] / max(float(z_L[2]), 0.5)
+        last = self._last
+        if last is not None and t > last[0]:
+            self.bias += (t - last[0]) / self.time * (last[1] - flown)
+            n = float(np.linalg.norm(self.bias))
+            if n > self.limit:
+                self.bias *= self.limit / n
+        self._last = (t, wanted.copy())
+        return self.bias.copy()
+
+
+#: Gauss-Legendre nodes and weights on [-1, 1] (8 points): the braking limb's height in a wind (FallDrag)
+_GAUSS = tuple((float(x), float(w)) for x, w in zip(*np.polynomial.legendre.leggauss(8)))
+
+
+@dataclass(frozen=True)
+class FallDrag:
+    """The drag on a fall through moving air, along up, and the braking limb it allows.
+
+    ``cd`` [1/m] is ``s K rho(h) / m`` (the fitted scale, :class:`.calibration.AirFit`); the wind has
+    a vertical part ``w_up`` [m/s, up positive] and a horizontal speed ``w_h`` [m/s]. At fall speed
+    ``s`` (ground frame, down positive) and no ground speed left, the air meets the lander at
+    ``u = s + w_up`` from below and ``w_h`` across: the drag's upward part is
+    ``D(s) = cd sqrt(u^2 + w_h^2) u``. The scale learnt at the canopy's terminal speed alone reads
+    an updraft as a denser air and scales ``s^2`` with it, so it under-predicts the drag as the fall
+    slows (``(s + w)^2 / s^2`` grows): the limb started the braking early and throttled back
+    through it.
+    """
+
+    cd: float
+    w_up: float
+    w_h: float
+
+    def deceleration(self, s: float) -> float:
+        """``D(s)`` [m/s^2, up], fall speed ``s`` [m/s, down positive]."""
+        u = s + self.w_up
+        return self.cd * math.sqrt(u * u + self.w_h * self.w_h) * u
+
+    def damping(self, s: float) -> float:
+        """``dD/ds`` [1/s]: the drag's damping of the fall speed."""
+        u = s + self.w_up
+        q = math.sqrt(u * u + self.w_h * self.w_h)
+        return self.cd * (q + u * u / q) if q > 0.0 else 0.0
+
+    def stopping_height(self, a_b: float, s: float) -> float:
+        """Height [m] a fall at ``s`` [m/s] takes to stop under thrust deceleration ``a_b`` [m/s^2] and
+        the drag: ``int_0^s x / (a_b + D(x)) dx`` (density held, as the limb's)."""
+        total = 0.0
+        for x, w in _GAUSS:
+            sig = 0.5 * s * (x + 1.0)
+            total += w * sig / (a_b + self.deceleration(sig))
+        return 0.5 * s * total
+
+    def limb_speed(self, a_b: float, h_c: float) -> float:
+        """Fall speed [m/s] from which the limb stops in ``h_c`` [m]: :meth:`stopping_height` inverted
+        by Newton's method from the still-air closed form (``dh/ds = s / (a_b + D(s))``)."""
+        c0 = max(self.cd, 1e-12)
+        v = math.sqrt((a_b / c0) * math.expm1(2.0 * c0 * h_c))
+        for _ in range(8):
+            f = self.stopping_height(a_b, v) - h_c
+            v = max(v - f * (a_b + self.deceleration(v)) / v, 1e-6)
+            if abs(f) < 1e-6 * max(h_c, 1.0):
+                break
+        return v
+
+
 class DescentToAltitude(LandingController):
     """The landing law's vertical loop redesigned to end at rest on ``floor`` [m] (the demand altitude).
 
@@ -121,6 +212,13 @@ class DescentToAltitude(LandingController):
     (full thrust to the last instant); a flare's slow end costs hover thrust, ~7 % of the powered
     fuel a second here. The deceleration asked for is capped at what stops the fall within one
     control period, so the last period does not reverse the speed.
+
+    Once the air is fitted under the chute (:class:`.calibration.AirFit`, at the powered descent's
+    start) the drag is the fitted air's on a fall through the fitted wind (:class:`FallDrag`: the
+    wind's vertical part moves the airspeed, so the drag no longer scales as ``v^2``), and the limb
+    is that ODE's, ``dh/dv = v / (a_b + D(v))``, integrated and inverted each period. With the
+    learnt scale alone the fuel grew with the updraft (200 km sweep replayed: median 1.024 in
+    downdrafts over 2 m/s, 1.035 in updrafts over 2 m/s; docs/deorbit.md, "The limb in the fitted air").
 
     Thrust acceleration along up: ``a_U = g + dv_d/dt + c h' |h'| + k(m, d) (T_v / m) (v_d - h')``,
     ``dv_d/dt = (a_b + c v_d^2) h' / v_d`` (chain rule, capped at the limb's own deceleration as
@@ -170,9 +268,9 @@ class DescentToAltitude(LandingController):
         self.air: AirFit | None = None  # the air fitted under the chute (DeorbitController._fit_air)
         self.drift_W = np.zeros(3)  # [m/s, world] horizontal velocity at the braking's start: the wind without a fit
         self.wind_h = 0.0  # [m/s] the horizontal wind at the braking's start (fitted, else the drift)
+        self.wind_up = 0.0  # [m/s] the fitted wind's vertical part (up positive)
         self._a_up = 0.0  # [m/s^2] this period's thrust acceleration along up (vertical_acceleration)
-        self._axis_bias = np.zeros(2)  # axis_bias's integral, ENU (east, north) over up
-        self._axis_last: tuple[float, np.ndarray] | None = None  # (t, the axis wanted then)
+        self.axis_integral = AxisIntegral(self.AXIS_TIME, self.AXIS_MAX)  # axis_bias's, braking
 
     @property
     def wind_W(self) -> np.ndarray:
@@ -209,20 +307,32 @@ class DescentToAltitude(LandingController):
         r = c.MARS_RADIUS + h
         g = c.GM_MARS / (r * r)
         a_b = self.braking_acceleration(self._mass, g)
-        cd = self.drag_k * self.drag_scale * MARS_ATMOSPHERE.density(h) / self._mass
         h_c = h - self.floor - self.stop_above
+        air = self.air
+        if air is None or self.drag_k <= 0.0:
+            # no fit (chute packed, or a flight begun under it): the scale learnt, still air
+            cd = self.drag_k * self.drag_scale * MARS_ATMOSPHERE.density(h) / self._mass
+            if h_c > 0.0:
+                v = math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
+                limb = a_b + cd * v * v  # the limb's deceleration at v
+            drag_up, damping = -cd * hd * abs(hd), 2.0 * cd * abs(hd)
+        else:
+            wind = FallDrag(self.drag_k * air.scale * MARS_ATMOSPHERE.density(h) / self._mass, self.wind_up, self.wind_h)
+            if h_c > 0.0:
+                v = wind.limb_speed(a_b, h_c)
+                limb = a_b + wind.deceleration(v)
+            drag_up, damping = wind.deceleration(-hd), wind.damping(-hd)
         if h_c > 0.0:
-            v = math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
-            # dv_d/dt = (dv_d/dh) h' = (a_b + c v^2) h' / v_d: the limb's deceleration scaled by how
+            # dv_d/dt = (dv_d/dh) h' = (a_b + D(v)) h' / v_d: the limb's deceleration scaled by how
             # fast the lander closes on it (capped at the limb's own, so it stays finite as v_d -> 0)
-            v_d, accel_d = -v, (a_b + cd * v * v) * min(max(-hd, 0.0) / v, 1.0) if v > 0.0 else 0.0
-            self._time_to_go = v / (a_b + cd * v * v) if v > 0.0 else 0.0
+            v_d, accel_d = -v, limb * min(max(-hd, 0.0) / v, 1.0) if v > 0.0 else 0.0
+            self._time_to_go = v / limb if v > 0.0 else 0.0
         else:
             v_d, accel_d = -self.RETURN_RATE * h_c, 0.0
             self._time_to_go = 0.0
-        a_up = g + accel_d + cd * hd * abs(hd) + self.rate_gain(2.0 * cd * abs(hd)) * (v_d - hd)
+        a_up = g + accel_d - drag_up + self.rate_gain(damping) * (v_d - hd)
         if hd < 0.0:
-            a_up = min(a_up, g - cd * hd * hd - hd / self._dt)
+            a_up = min(a_up, g - drag_up - hd / self._dt)
         if a_up >= 0.1 * g and self.mode == "coast":
             self.mode = MODES[1]
         self._a_up = a_up
@@ -273,29 +383,19 @@ class DescentToAltitude(LandingController):
         return -cd * float(np.linalg.norm(rel)) * rel[:2]
 
     def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
-        """Braking: integral action on the thrust axis the attitude law flies against the one wanted.
+        """Braking: integral action on the thrust axis the attitude law flies against the one wanted
+        (:class:`AxisIntegral`); none outside the braking.
 
         Under the canopy the attitude law (proportional-derivative) flies the thrust axis short of
         its demand: the canopy's torque pulls body +z back toward the airflow. Replayed (200 km
         sweep's case 38, 2.5 m/s of drift to take out) the axis flew under half the tilt asked for
         through the braking, and 0.36 m/s of drift was left at the hover, 1.3 s of hover thrust
-        (12 % of the optimum's fuel) to take out. The correction is ``(1 / AXIS_TIME)`` times the
-        integral of ``wanted - flown`` (each the axis's horizontal over its vertical part, ENU),
-        at most ``AXIS_MAX``; none outside the braking.
+        (12 % of the optimum's fuel) to take out.
         """
         if self.floor <= 0.0 or self.mode == "coast":
-            self._axis_last = None
+            self.axis_integral.pause()
             return None
-        z_L = L @ quat_to_matrix(state.q)[2]
-        flown = z_L[:2] / max(float(z_L[2]), 0.5)
-        last = self._axis_last
-        if last is not None and t > last[0]:
-            self._axis_bias += (t - last[0]) / self.AXIS_TIME * (last[1] - flown)
-            n = float(np.linalg.norm(self._axis_bias))
-            if n > self.AXIS_MAX:
-                self._axis_bias *= self.AXIS_MAX / n
-        self._axis_last = (t, wanted.copy())
-        return self._axis_bias.copy()
+        return self.axis_integral.update(t, state.q, L, wanted)
 
     def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
         # From the braking on, the heading is the one the body had as it began (``heading_W``, world
@@ -643,6 +743,7 @@ class DeorbitController(Controller):
         self.descent.drift_W = drift
         w = self.descent.wind_W
         self.descent.wind_h = float(np.linalg.norm(w - float(w @ up) * up))
+        self.descent.wind_up = float(w @ up) if self.air is not None else 0.0
 
     def _learn_drag(self, t: float, state: StateView) -> None:
         """Under the open chute with the thrusters off: the drag the air really gives against the model's.
@@ -658,8 +759,9 @@ class DeorbitController(Controller):
         Each period also gives the fit of the drag's scale and the wind over the whole coast
         (:class:`.calibration.ChuteDragFit`, solved at the powered descent's start, :meth:`_fit_air`):
         the measured drag vector, the thrust commanded over the period taken off. The MPC plans on
-        that fit; the scheduled law's braking limb flies on the scalar above, its horizontal loop
-        feeds the fit's drag forward (:meth:`DescentToAltitude.horizontal_acceleration`)."""
+        that fit, and so does the scheduled law from then on: its braking limb (:class:`FallDrag`)
+        and its horizontal loop's drag fed forward (:meth:`DescentToAltitude.horizontal_acceleration`).
+        The scalar above sets the limb's curve until the fit, the braking's first instant included."""
         h = self._altitude(state)
         climb = self._climb_rate(state)
         prev, self._last_climb = self._last_climb, (t, climb)

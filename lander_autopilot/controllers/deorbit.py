@@ -189,6 +189,8 @@ class FallDrag:
         by Newton's method from the still-air closed form (``dh/ds = s / (a_b + D(s))``)."""
         c0 = max(self.cd, 1e-12)
         v = math.sqrt((a_b / c0) * math.expm1(2.0 * c0 * h_c))
+        if v <= 0.0:  # no thrust to brake with (a_b 0): no limb, as the still-air form's
+            return 0.0
         for _ in range(8):
             f = self.stopping_height(a_b, v) - h_c
             v = max(v - f * (a_b + self.deceleration(v)) / v, 1e-6)

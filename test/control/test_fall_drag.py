@@ -55,6 +55,8 @@ def test_limb_in_a_wind_inverts_the_stopping_height(w_up: float, w_h: float):
             assert v > still.limb_speed(A_B, h_c)
         elif w_h == 0.0:
             assert v < still.limb_speed(A_B, h_c)
+    # no thrust to brake with (the attitude law takes the whole collective): no limb, no division by zero
+    assert drag.limb_speed(0.0, 50.0) == 0.0
 
 
 def test_damping_is_the_drags_derivative():

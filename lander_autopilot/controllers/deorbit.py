@@ -142,6 +142,13 @@ class AxisIntegral:
         return self.bias.copy()
 
 
+def still_air_limb_speed(a_b: float, cd: float, h_c: float) -> float:
+    """Fall speed [m/s] from which the braking limb stops in ``h_c`` [m] under thrust deceleration
+    ``a_b`` [m/s^2] and a drag ``cd v^2`` in still air (``cd`` [1/m]): ``v^2 = (a_b / cd)(e^{2 cd h_c} - 1)``,
+    ``2 a_b h_c`` without drag."""
+    return math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
+
+
 #: Gauss-Legendre nodes and weights on [-1, 1] (8 points): the braking limb's height in a wind (FallDrag)
 _GAUSS = tuple((float(x), float(w)) for x, w in zip(*np.polynomial.legendre.leggauss(8)))
 
@@ -187,8 +194,7 @@ class FallDrag:
     def limb_speed(self, a_b: float, h_c: float) -> float:
         """Fall speed [m/s] from which the limb stops in ``h_c`` [m]: :meth:`stopping_height` inverted
         by Newton's method from the still-air closed form (``dh/ds = s / (a_b + D(s))``)."""
-        c0 = max(self.cd, 1e-12)
-        v = math.sqrt((a_b / c0) * math.expm1(2.0 * c0 * h_c))
+        v = still_air_limb_speed(a_b, self.cd, h_c)
         if v <= 0.0:  # no thrust to brake with (a_b 0): no limb, as the still-air form's
             return 0.0
         for _ in range(8):
@@ -315,7 +321,7 @@ class DescentToAltitude(LandingController):
             # no fit (chute packed, or a flight begun under it): the scale learnt, still air
             cd = self.drag_k * self.drag_scale * MARS_ATMOSPHERE.density(h) / self._mass
             if h_c > 0.0:
-                v = math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
+                v = still_air_limb_speed(a_b, cd, h_c)
                 limb = a_b + cd * v * v  # the limb's deceleration at v
             drag_up, damping = -cd * hd * abs(hd), 2.0 * cd * abs(hd)
         else:
@@ -745,7 +751,7 @@ class DeorbitController(Controller):
         self.descent.drift_W = drift
         w = self.descent.wind_W
         self.descent.wind_h = float(np.linalg.norm(w - float(w @ up) * up))
-        self.descent.wind_up = float(w @ up) if self.air is not None else 0.0
+        self.descent.wind_up = float(w @ up)  # read only with a fit (without one, w is the horizontal drift)
 
     def _learn_drag(self, t: float, state: StateView) -> None:
         """Under the open chute with the thrusters off: the drag the air really gives against the model's.

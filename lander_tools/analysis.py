@@ -23,7 +23,10 @@ Metric definitions (all SI):
   ``band = max(2 % of the step, band_min)`` (:func:`lander_tools.sweep.metrics.settling_time`,
   the sweeps' definition; ``None`` where it never settles); ``overshoot`` is the largest excursion
   past ``h_d`` in the step's direction as a percentage of the step; ``steady_state_error``
-  is the mean of ``h - h_d`` over the last ``tail_fraction`` of the segment.
+  is the mean of ``h - h_d`` and ``hover_error_max`` the largest ``|h - h_d|`` over the last
+  ``tail_fraction`` of the settled part of the segment (from the settling instant to its end; the
+  whole segment where it never settles), so that a long approach (a de-orbit's fall from orbit
+  to a hover) does not count as the steady state.
 * ``saturation_time``: simulation time the autopilot reported ``saturated`` (or, without
   ``/autopilot/status``, time with any throttle at 0 or 1 while others are not).
 * ``gimbal_lock_events``: GIMBAL_LOCK events, else rising edges of the state's flag.
@@ -237,9 +240,13 @@ def _step_response(
     if abs(step) > band_min:
         past = np.sign(step) * err
         overshoot = float(max(0.0, past.max()) / abs(step) * 100.0)
-    n_tail = max(1, int(len(ts) * tail_fraction))
-    sse = float(np.mean(err[-n_tail:]))
-    return settling, overshoot, sse, float(np.max(np.abs(err[-n_tail:])))
+    # The tail is taken from the settled part: a de-orbit's segment is a half-hour fall to a
+    # two-minute hover, and the last 20 % of the whole segment would average the fall in.
+    outside = np.nonzero(np.abs(err) > band)[0]
+    settled = err if settling is None else err[int(outside[-1]) + 1 if outside.size else 0:]
+    n_tail = max(1, int(len(settled) * tail_fraction))
+    sse = float(np.mean(settled[-n_tail:]))
+    return settling, overshoot, sse, float(np.max(np.abs(settled[-n_tail:])))
 
 
 def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -> Metrics:

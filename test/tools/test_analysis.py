@@ -71,6 +71,20 @@ def test_constant_offset_is_the_steady_state_error(tmp_path: Path) -> None:
     assert m.settling_time == 0.0  # inside the 0.5 m band from the start
 
 
+def test_steady_state_is_taken_after_settling_not_over_a_long_approach(tmp_path: Path) -> None:
+    # A de-orbit's shape: 200 s falling 20 km at 100 m/s to the demand, then 20 s of hover 0.3 m
+    # under it. The last 20 % of the segment (44 s) would average 24 s of the fall in; the steady
+    # state is the hover's offset, and its largest error too.
+    t = np.arange(0, 220, DT)
+    h = np.where(t < 200.0, 20_500.0 - 100.0 * t, 499.7)
+    write_flight_bag(tmp_path / "b", t, h, np.gradient(h, t), demand=[(0.0, 500.0)])
+    m = metrics(Flight.from_bag(read_bag(tmp_path / "b")))
+    # Band: 2 % of the 20 km step, 400 m, entered 4 s before the demand (the tail is all hover).
+    assert m.settling_time == pytest.approx(196.0, abs=DT + 1e-9)
+    assert m.steady_state_error == pytest.approx(-0.3, abs=1e-9)
+    assert m.hover_error_max == pytest.approx(0.3, abs=1e-9)
+
+
 def test_angular_momentum_drift_is_zero_for_a_true_free_spin_and_large_for_a_wrong_one(tmp_path: Path) -> None:
     # Spin about the body x axis (a principal axis): omega constant, q(t) = q_x(0.8 t) exactly,
     # so L_W = R^T I omega is constant (eq 2: omega x I omega = 0) up to rounding.

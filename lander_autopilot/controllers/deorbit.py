@@ -424,6 +424,13 @@ class DescentToAltitude(LandingController):
         return self.max_tilt if self.floor > 0.0 else super().tilt_limit(h)
 
 
+#: The hover's attitude poles [1/s]: twice the ground-speed law's -2 (eight times its velocity loop's
+#: -0.5). Under the canopy in a wind the hover takes over with the thrust axis short of the tilt the
+#: drag at rest needs; at -2 the 200 km sweep's case 164 flew 0.016 -> 0.05 of the 0.09 asked for in
+#: 1.8 s of hover thrust (docs/deorbit.md, "The hover's attitude"). -4 is 0.4 rad per 0.1 s period.
+HOVER_ATTITUDE_POLES: tuple[float, ...] = (-4.0,) * 6
+
+
 class HoverCapture(GroundSpeedController):
     """The hover after the powered descent: the ground-speed law, its altitude loop a capture.
 
@@ -507,7 +514,8 @@ class DeorbitController(Controller):
     prediction period), ``brake_fraction`` (of the net thrust acceleration, the descent law's braking
     limb: 0.95 leaves the feedback 5 % for a thrust, mass or density off the model), ``descent_pole``
     [1/s] (of its scheduled velocity loop, :class:`DescentToAltitude`), ``attitude_poles`` (of the
-    quaternion attitude law), ``design_fuel`` [kg]."""
+    quaternion attitude law), ``hover_attitude_poles`` (the hover's, :class:`HoverCapture`),
+    ``design_fuel`` [kg]."""
 
     name: ClassVar[str] = "deorbit"
 
@@ -515,7 +523,8 @@ class DeorbitController(Controller):
                  hover_band: float = 2.0, hover_speed: float = 0.2, chute_first: bool = True,
                  chute_margin: float = 0.9, chute_altitude: float = 3000.0, predict_every: float = 1.0,
                  brake_fraction: float = 0.95, descent_pole: float = -2.0,
-                 attitude_poles: object = (-1.0,) * 6, design_fuel: float | None = None) -> None:
+                 attitude_poles: object = (-1.0,) * 6, hover_attitude_poles: object = HOVER_ATTITUDE_POLES,
+                 design_fuel: float | None = None) -> None:
         super().__init__(vehicle)
         self.hover_band = positive_param("hover_band", hover_band)
         self.hover_speed = positive_param("hover_speed", hover_speed)
@@ -538,7 +547,7 @@ class DeorbitController(Controller):
         self.descent.rate_schedule = schedule_descent_rate(
             self.descent.T_v, np.linspace(vehicle.dry_mass, vehicle.dry_mass + vehicle.fuel_capacity, 5),
             np.linspace(0.0, 1.0, 5), pole=float(descent_pole))
-        self.hover = HoverCapture(vehicle)
+        self.hover = HoverCapture(vehicle, attitude_poles=hover_attitude_poles)
         self.hover.band, self.hover.speed = self.hover_band, self.hover_speed
         self.landing = LandingController(vehicle)
         self.slew_time = positive_param("slew_time", slew_time)

@@ -40,7 +40,7 @@ from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
 from .combined import CollectiveHeadroom, mix_with_attitude_priority
-from .deorbit import DeorbitController, Phase, thrust_axis_attitude
+from .deorbit import HOVER_ATTITUDE_POLES, DeorbitController, Phase, thrust_axis_attitude
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
 # s: the mean delay of that loop, p^2 / (s - p)^2, is 2 / |p|: the lag the QP plans the thrust axis with
@@ -141,12 +141,13 @@ class DeorbitMpcController(DeorbitController):
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
                  predict_every: float = 1.0, brake_fraction: float = 0.5, attitude_poles: object = (-1.0,) * 6,
-                 design_fuel: float | None = None) -> None:
+                 hover_attitude_poles: object = HOVER_ATTITUDE_POLES, design_fuel: float | None = None) -> None:
         # the parent's parameters spelt out, so that the registry names an unknown one
         super().__init__(vehicle, slew_time=slew_time, burn_throttle=burn_throttle, hover_band=hover_band,
                          hover_speed=hover_speed, chute_first=chute_first, chute_margin=chute_margin,
                          chute_altitude=chute_altitude, predict_every=predict_every, brake_fraction=brake_fraction,
-                         attitude_poles=attitude_poles, design_fuel=design_fuel)
+                         attitude_poles=attitude_poles, hover_attitude_poles=hover_attitude_poles,
+                         design_fuel=design_fuel)
         if not isinstance(horizon_steps, int) or horizon_steps < 2:
             raise ControllerError(f"horizon_steps: expected an integer >= 2, got {horizon_steps!r}")
         if not isinstance(reference_steps, int) or reference_steps < 10:

@@ -15,7 +15,8 @@ that improved every ``fuel_ratio`` made 13 of 200 flights fall from the hover la
 A replay is the sweep's flight, bit for bit, as long as nothing that runs before the snapshot has
 changed (the entry, the chute, what the laws learn under it): ``--check K`` re-flies the first K
 cases whole with :func:`~lander_tools.sweep.flight.fly_case` and compares. Snapshots made by older
-code get the attributes the current controller's ``reset()`` adds, from a fresh controller.
+code get the attributes the current controller's ``reset()`` adds, and its designed gains, from a
+fresh controller.
 
     ./dev exec python bench/deorbit_replay.py make sweeps/deorbit-200km.yaml --controller scheduled   # 14 min
     ./dev exec python bench/deorbit_replay.py replay sweeps/deorbit-200km.yaml --controller scheduled  # ~30 s
@@ -77,14 +78,20 @@ class Replayed:
     band_time: float = math.nan  # [s] from the powered descent's start to the band at rest
 
 
+#: Designed gains: constants of a law's construction, taken from the current code on replay.
+_GAINS = ("K", "k_i", "k_p")
+
+
 def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
-    """Give ``old`` (unpickled from older code) the attributes ``fresh`` has and it lacks, recursively
-    into attributes that are objects of the same class."""
+    """Give ``old`` (unpickled from older code) the attributes ``fresh`` has and it lacks, and
+    fresh's designed gains (:data:`_GAINS`: a change of poles is then replayed), recursively into
+    attributes that are objects of the same class."""
     if depth < 0 or not hasattr(old, "__dict__") or type(old) is not type(fresh):
         return
     mine = vars(old)
+    frozen = getattr(getattr(old, "__dataclass_params__", None), "frozen", False)  # a design record
     for k, v in vars(fresh).items():
-        if k not in mine:
+        if k not in mine or (k in _GAINS and not frozen):
             setattr(old, k, v)
         else:
             _fill_missing(mine[k], v, depth - 1)

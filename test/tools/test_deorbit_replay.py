@@ -43,3 +43,23 @@ def test_a_case_without_its_snapshot_is_reported_not_flown(tmp_path, capsys):
     code = tool.main(["replay", str(SPEC), "--folder", str(tmp_path), "--cases", "3", "--workers", "1"])
     assert code == 0
     assert "1 flights: 1 no snapshot" in capsys.readouterr().out
+
+
+def test_a_snapshot_from_older_code_gets_the_current_gains_and_keeps_its_state():
+    # A controller pickled before a change of the hover's attitude poles (and without an attribute
+    # the current reset() adds): replayed, it flies the current gains, and what it learnt stays.
+    import numpy as np
+
+    from lander_autopilot.controllers import make_controller
+    from lander_sim.scenes import load_scene
+
+    tool = _tool()
+    vehicle = load_scene("deorbit-200km").vehicle
+    old = make_controller("deorbit", vehicle, hover_attitude_poles=[-2.0] * 6)
+    fresh = make_controller("deorbit", vehicle)
+    old.descent.drag_scale = 0.87  # learnt under the chute
+    del old.descent.heading_W
+    assert not np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
+    tool._fill_missing(old, fresh)
+    assert np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
+    assert old.descent.drag_scale == 0.87 and old.descent.heading_W is fresh.descent.heading_W

@@ -65,7 +65,7 @@ from ..design.altitude import vertical_thrust
 from ..design.schedule import GainSchedule, schedule_descent_rate
 from ..design.translational import local_frame
 from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, fly_entry, plan
-from ._params import positive_param
+from ._params import poles_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import (
     REQUEST_DEPLOY_PARACHUTE,
@@ -526,6 +526,9 @@ class DeorbitController(Controller):
                  attitude_poles: object = (-1.0,) * 6, hover_attitude_poles: object = HOVER_ATTITUDE_POLES,
                  design_fuel: float | None = None) -> None:
         super().__init__(vehicle)
+        # checked here, so that a bad value is named by its key (the laws' own check says "poles")
+        poles_param("attitude_poles", attitude_poles, 6)
+        poles_param("hover_attitude_poles", hover_attitude_poles, 6)
         self.hover_band = positive_param("hover_band", hover_band)
         self.hover_speed = positive_param("hover_speed", hover_speed)
         if not isinstance(chute_first, (bool, np.bool_)):

@@ -121,3 +121,8 @@ def test_bad_mpc_parameters_name_the_key():
         make_controller("deorbit-mpc", sc.vehicle, horizon=3)
     with pytest.raises(ControllerError, match="chute_margin"):
         make_controller("deorbit", sc.vehicle, chute_margin=1.5)
+    for name in ("deorbit", "deorbit-mpc"):
+        for key in ("attitude_poles", "hover_attitude_poles"):
+            for bad in ([-1.0] * 5, [1.0] * 6, "fast"):
+                with pytest.raises(ControllerError, match=f"^{key}:"):
+                    make_controller(name, sc.vehicle, **{key: bad})

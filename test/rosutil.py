@@ -6,6 +6,7 @@ Pure helpers (no fixtures; test/conftest.py wraps them). Importable from any tes
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import os
 import signal
@@ -52,6 +53,14 @@ def release_domain_id(domain: int) -> None:
     f = _held_locks.pop(domain, None)
     if f is not None:
         f.close()
+
+
+@atexit.register
+def _release_all() -> None:
+    # A run's own domain is held to its end; closed here rather than by the interpreter's teardown,
+    # which warned of each open lock file (ResourceWarning) after every run.
+    for domain in list(_held_locks):
+        release_domain_id(domain)
 
 
 #: Set in this process's environment (so inherited by everything it starts): which test run a

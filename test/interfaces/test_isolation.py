@@ -29,7 +29,11 @@ def test_domain_claims_are_distinct_while_held():
     own = int(os.environ["ROS_DOMAIN_ID"])
     a = rosutil.claim_domain_id(seed=own)
     b = rosutil.claim_domain_id(seed=own)
-    assert len({own, a, b}) == 3
+    try:
+        assert len({own, a, b}) == 3
+    finally:
+        rosutil.release_domain_id(a)
+        rosutil.release_domain_id(b)
 
 
 def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):

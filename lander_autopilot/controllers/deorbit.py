@@ -452,7 +452,9 @@ class HoverCapture(GroundSpeedController):
     0.17 -> 0.24 m/s over 1.5 s), 3.3 s of hover thrust to the band at rest. The braking's integral
     action on the thrust axis (:meth:`DescentToAltitude.axis_bias`) is not carried on here: over
     the 30 s hold it set the horizontal loop oscillating, growing, and 13 of the 200 km sweep's
-    200 flights fell from the hover (docs/deorbit.md, "The hover's take-over").
+    200 flights fell from the hover (docs/deorbit.md, "The hover's take-over"). Its attitude law is
+    faster than the ground-speed law's (:data:`HOVER_ATTITUDE_POLES`, set by the mission): the tilt
+    the wind needs at rest is flown before the drift the braking left can grow.
     """
 
     band: float = 2.0

@@ -52,7 +52,7 @@ from lander_sim.physics import constants
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_tools import plotstyle as ps
 from lander_tools.bagio import Bag, BagError
-from lander_tools.sweep.metrics import settling_time
+from lander_tools.sweep.metrics import settled_index, settling_time
 
 # FlightEvent kinds (lander_interfaces/msg/FlightEvent.msg); duplicated as plain ints so that
 # analysis needs neither rclpy nor the built interfaces.
@@ -242,8 +242,8 @@ def _step_response(
         overshoot = float(max(0.0, past.max()) / abs(step) * 100.0)
     # The tail is taken from the settled part: a de-orbit's segment is a half-hour fall to a
     # two-minute hover, and the last 20 % of the whole segment would average the fall in.
-    outside = np.nonzero(np.abs(err) > band)[0]
-    settled = err if settling is None else err[int(outside[-1]) + 1 if outside.size else 0:]
+    start = settled_index(err, band)
+    settled = err if start is None else err[start:]
     n_tail = max(1, int(len(settled) * tail_fraction))
     sse = float(np.mean(settled[-n_tail:]))
     return settling, overshoot, sse, float(np.max(np.abs(settled[-n_tail:])))

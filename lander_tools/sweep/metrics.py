@@ -191,6 +191,15 @@ def _landing_outcome(terminal: str, td: dict[str, Any], rate: float, speed: floa
     return ("landed" if inside else "over-limits"), inside
 
 
+def settled_index(e: np.ndarray, band: float) -> int | None:
+    """First index from which ``|e|`` stays within ``band`` to the end; None if the last sample is outside."""
+    outside = np.nonzero(np.abs(e) > band)[0]
+    if outside.size == 0:
+        return 0
+    last = int(outside[-1])
+    return None if last == e.size - 1 else last + 1
+
+
 def settling_time(t: np.ndarray, e: np.ndarray, t_change: float, band: float) -> float:
     """Time from ``t_change`` until ``|e|`` stays within ``band`` to the end; NaN if it never does.
 
@@ -199,11 +208,8 @@ def settling_time(t: np.ndarray, e: np.ndarray, t_change: float, band: float) ->
     after = t >= t_change
     if not np.any(after):
         return math.nan
-    ta, ea = t[after], np.abs(e[after])
-    outside = np.nonzero(ea > band)[0]
-    if outside.size == 0:
-        return 0.0
-    last = int(outside[-1])
-    if last == ea.size - 1:
+    ta = t[after]
+    i = settled_index(e[after], band)
+    if i is None:
         return math.nan
-    return float(ta[last + 1] - t_change)
+    return 0.0 if i == 0 else float(ta[i] - t_change)

@@ -9,7 +9,15 @@ a time limit, the OOM killer) would leave them running: a lockstep sim and its a
 flying at full speed on the same ROS domain, eat the CPU and answer the next flight's states.
 SIGTERM is the nodes' clean exit (as SIGINT is).
 
-``PR_SET_PDEATHSIG`` is Linux-only; elsewhere the module runs without the guard.
+That clean exit is bounded: once the parent is gone, a kernel timer (``SIGALRM`` at its default
+action, which needs no Python) ends the process :data:`PARENT_GONE_GRACE` s later whatever it is
+doing. Seen in CI: a sim whose launcher was SIGKILLed stuck for good in ``destroy_node`` (Fast DDS
+deadlocks destroying a participant while it removes a dead remote one; the call holds the GIL, so
+no Python-level wait can end it). And once the module's ``main`` has returned (node destroyed,
+context shut down) the process ends at once: the interpreter's teardown of numpy/scipy/control
+took another ~1.5 s (measured), the time a teardown check waits for.
+
+``PR_SET_PDEATHSIG`` and ``pidfd_open`` are Linux-only; elsewhere the module runs without the guard.
 """
 from __future__ import annotations
 
@@ -17,10 +25,14 @@ import ctypes
 import ctypes.util
 import os
 import runpy
+import select
 import signal
 import sys
+import threading
 
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+#: Wall seconds a node gets for its clean exit (flush <= 1 s, destroy) after its parent died.
+PARENT_GONE_GRACE = 4.0
 
 
 def die_with_parent(parent_pid: int) -> bool:
@@ -31,6 +43,24 @@ def die_with_parent(parent_pid: int) -> bool:
             raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
     # The parent may have died between fork and prctl: then we were re-parented already.
     return os.getppid() == parent_pid
+
+
+def end_after_parent(parent_pid: int, grace: float = PARENT_GONE_GRACE) -> bool:
+    """Watch the parent (a pidfd, no polling); when it dies, arm a ``grace`` s SIGALRM that ends
+    this process even if it is stuck in C. False where pidfds are missing (no guard)."""
+    try:
+        fd = os.pidfd_open(parent_pid)
+    except (AttributeError, OSError):
+        return False
+
+    def watch() -> None:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN)
+        poller.poll()  # readable once the parent has exited
+        signal.setitimer(signal.ITIMER_REAL, grace)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+    return True
 
 
 def command(module: str, args: list[str]) -> list[str]:
@@ -45,10 +75,27 @@ def main(argv: list[str]) -> int:
     if not die_with_parent(int(argv[0])):
         print(f"lander_tools.child: parent {argv[0]} is gone; not starting {argv[1]}", file=sys.stderr)
         return 1
+    end_after_parent(int(argv[0]))
     sys.argv = [argv[1], *argv[2:]]
-    runpy.run_module(argv[1], run_name="__main__", alter_sys=True)
+    try:
+        runpy.run_module(argv[1], run_name="__main__", alter_sys=True)
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):
+            return exc.code or 0
+        print(exc.code, file=sys.stderr)  # sys.exit("message"), as the interpreter would show it
+        return 1
     return 0
 
 
+def exit_now(code: int) -> None:
+    """End the process with ``code`` after flushing stdio, skipping the interpreter's teardown."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # the parent (reader of our pipe) is gone
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    exit_now(main(sys.argv[1:]))

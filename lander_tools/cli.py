@@ -45,6 +45,12 @@ SUMMARIES: dict[str, str] = {
 }
 
 EXIT_USAGE = 2
+_as_program = False  # main() called as the program (argv from the command line), not in-process
+
+
+def running_as_program() -> bool:
+    """True in a ``lander`` process (``main()`` without argv): a command may then bound its exit."""
+    return _as_program
 
 
 class _Parser(argparse.ArgumentParser):
@@ -99,6 +105,8 @@ def _requested(argv: Sequence[str], names: list[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    global _as_program
+    _as_program = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     name = _requested(argv, _command_names())
     try:

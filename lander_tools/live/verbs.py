@@ -20,6 +20,8 @@ from lander_tools.live.link import (
 
 EXIT_REFUSED = 1
 EXIT_NO_FLIGHT = 3
+#: Wall seconds the link's ROS teardown may take in a ``lander`` process (normally milliseconds).
+CLOSE_TIMEOUT = 10.0
 
 
 def add_wait_argument(parser: argparse.ArgumentParser) -> None:
@@ -31,19 +33,48 @@ def add_wait_argument(parser: argparse.ArgumentParser) -> None:
 def run_verb(verb: str, action: Callable[[FlightLink], Outcome], needs: str = SIM_NODE,
              wait: float = DISCOVERY_TIMEOUT) -> int:
     """Open a link, wait up to ``wait`` s for the simulator and the node ``needs``, run ``action``;
-    print its outcome; return the exit status."""
+    print its outcome; return the exit status.
+
+    The line is printed before the link's ROS teardown, and in a ``lander`` process that teardown
+    is bounded (:func:`_bounded_close`): Fast DDS can deadlock destroying a participant while it
+    removes a remote one (seen in CI: a verb hung in ``destroy_node`` as other verbs exited)."""
+    link = FlightLink(f"lander_{verb}")
     try:
-        with FlightLink(f"lander_{verb}") as link:
-            link.wait_for_node(SIM_NODE, wait)
-            if needs != SIM_NODE:
-                link.wait_for_node(needs, wait)
-            out = action(link)
+        link.wait_for_node(SIM_NODE, wait)
+        if needs != SIM_NODE:
+            link.wait_for_node(needs, wait)
+        out = action(link)
     except (NoFlight, TimeoutError) as exc:
-        print(f"lander {verb}: {exc}", file=sys.stderr)
+        print(f"lander {verb}: {exc}", file=sys.stderr, flush=True)
+        _bounded_close(link)
         return EXIT_NO_FLIGHT
+    except BaseException:
+        _bounded_close(link)
+        raise
     if not out.ok:
-        print(f"lander {verb}: refused by the flight: {out.message}", file=sys.stderr)
-        return EXIT_REFUSED
-    extra = "".join(f", {k} {v}" for k, v in (out.values or {}).items())
-    print(f"lander {verb}: {out.message or 'ok'}{extra}")
-    return 0
+        print(f"lander {verb}: refused by the flight: {out.message}", file=sys.stderr, flush=True)
+        code = EXIT_REFUSED
+    else:
+        extra = "".join(f", {k} {v}" for k, v in (out.values or {}).items())
+        print(f"lander {verb}: {out.message or 'ok'}{extra}", flush=True)
+        code = 0
+    _bounded_close(link)
+    return code
+
+
+def _bounded_close(link: FlightLink) -> None:
+    """Close ``link``; in the ``lander`` program (not in-process callers) a stuck teardown ends the
+    process after :data:`CLOSE_TIMEOUT` s with the threads' stacks on stderr. faulthandler's
+    watchdog is a C thread: the stuck call holds the GIL, so no Python-level wait could end it."""
+    import faulthandler
+
+    from lander_tools import cli
+
+    guard = cli.running_as_program()
+    if guard:
+        faulthandler.dump_traceback_later(CLOSE_TIMEOUT, exit=True)
+    try:
+        link.close()
+    finally:
+        if guard:
+            faulthandler.cancel_dump_traceback_later()

@@ -40,26 +40,22 @@ def run_verb(verb: str, action: Callable[[FlightLink], Outcome], needs: str = SI
     removes a remote one (seen in CI: a verb hung in ``destroy_node`` as other verbs exited)."""
     link = FlightLink(f"lander_{verb}")
     try:
-        link.wait_for_node(SIM_NODE, wait)
-        if needs != SIM_NODE:
-            link.wait_for_node(needs, wait)
-        out = action(link)
-    except (NoFlight, TimeoutError) as exc:
-        print(f"lander {verb}: {exc}", file=sys.stderr, flush=True)
-        _bounded_close(link)
-        return EXIT_NO_FLIGHT
-    except BaseException:
-        _bounded_close(link)
-        raise
-    if not out.ok:
-        print(f"lander {verb}: refused by the flight: {out.message}", file=sys.stderr, flush=True)
-        code = EXIT_REFUSED
-    else:
+        try:
+            link.wait_for_node(SIM_NODE, wait)
+            if needs != SIM_NODE:
+                link.wait_for_node(needs, wait)
+            out = action(link)
+        except (NoFlight, TimeoutError) as exc:
+            print(f"lander {verb}: {exc}", file=sys.stderr, flush=True)
+            return EXIT_NO_FLIGHT
+        if not out.ok:
+            print(f"lander {verb}: refused by the flight: {out.message}", file=sys.stderr, flush=True)
+            return EXIT_REFUSED
         extra = "".join(f", {k} {v}" for k, v in (out.values or {}).items())
         print(f"lander {verb}: {out.message or 'ok'}{extra}", flush=True)
-        code = 0
-    _bounded_close(link)
-    return code
+        return 0
+    finally:
+        _bounded_close(link)
 
 
 def _bounded_close(link: FlightLink) -> None:

@@ -28,14 +28,19 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 #: Writer history of every output. A reliable KEEP_LAST writer keeps its last ``depth`` messages for
-#: a subscriber that has not acknowledged them yet and drops older ones unseen, so the depth is the
-#: longest stall of the slowest subscriber it survives: rate x stall. Fastest rates: speed 0, about
-#: 40x real time at 10 Hz in lockstep (full stack) or 50x at 50 Hz free running: 400-2500 messages/s
-#: per topic. Longest gap in a recorder's receive times during a flight, measured under a flat-out
-#: competing core: 0.16 s (bench/full_stack.py "rx gap", docs/reliability.md) -> 64-400 messages.
-#: 1000 leaves a margin of 2.5 at the worst rate and costs memory only for messages not yet
-#: acknowledged (KEEP_LAST never blocks the publisher, so the control loop cannot stall on it).
-OUTPUT_DEPTH = 1000
+#: a subscriber that has not acknowledged them yet and drops older ones unseen, so the depth must
+#: cover rate x (the slowest subscriber's longest stall + the time a repair takes). The repair is
+#: the slow part: a message the transport dropped while a subscriber was descheduled (its
+#: shared-memory port full) is re-sent only after the writer's next heartbeat has made the reader
+#: ask for it, and Fast DDS's periodic heartbeat is 3 s. Measured (docs/reliability.md, "Delivery"):
+#: with the old depth of 1000 a recorder stopped for 1 s lost 1-10 messages a stop, delivered up to
+#: 2.9 s late; the de-orbit scenes' coast runs up to ~120x real time at 10 Hz (deorbit, from a bag's
+#: receive times), ~1200 messages/s per topic, so 1000 covered 0.8 s. 10000 covers 3 s of repair
+#: plus a 5 s stall at that rate (plus 1 s at 2500/s, the 50 Hz free-running top speed) and costs
+#: memory only for messages not yet acknowledged (~3 MB more RSS per node at the peak of a de-orbit
+#: flight). KEEP_LAST never blocks the publisher on its history (a stall of seconds can still slow
+#: the other subscribers through the shared-memory transport: docs/reliability.md).
+OUTPUT_DEPTH = 10000
 OUTPUT_QOS = QoSProfile(depth=OUTPUT_DEPTH, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: Wall seconds a node waits in all at exit for its subscribers to acknowledge its last messages
 #: (a dead subscriber, still matched until its lease expires, would otherwise hold the exit up).

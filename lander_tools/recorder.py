@@ -54,9 +54,12 @@ DEFAULT_TOPICS: tuple[str, ...] = (
     "/autopilot/status",
     "/diagnostics",
 )
-#: Subscription (reader history) depth: the messages of one topic waiting for the recorder's callback;
-#: seconds of the fastest topic (~400/s at speed 0 in lockstep) with the ~26 us a message costs.
-QUEUE_DEPTH = 2000
+#: Subscription (reader history) depth: the messages of one topic waiting for the recorder's callback,
+#: and those received after a hole while the reader waits for the writer's repair (up to the writer's
+#: 3 s heartbeat later, ``lander_ros.delivery.OUTPUT_DEPTH``): a reliable reader hands messages over in
+#: order only. At 2000 a recorder stopped for 2.5 s lost a run of 1063 clock messages with the writers
+#: at 10000; it takes as long as the writers' history to overflow it.
+QUEUE_DEPTH = 10000
 
 
 class RecorderError(ValueError):

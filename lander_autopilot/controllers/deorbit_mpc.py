@@ -17,8 +17,9 @@ would start braking under the open chute) this law
    re-linearised), within the throttle limit, the tilt limit and a glide slope.
 
 The thrust vector the QP asks for becomes a thrust-axis attitude (the quaternion attitude law,
-attitude priority) and a collective throttle ``|T| / T_axial``. The phase ends as the scheduled
-law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand, the ground-speed law holds
+attitude priority; once the braking has begun, thrust first where the mixer's floor binds:
+:func:`.combined.thrust_first_at_floor`) and a collective throttle ``|T| / T_axial``. The phase
+ends as the scheduled law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand, the ground-speed law holds
 the hover. Core code (no rclpy); solve times are kept (:meth:`DeorbitMpcController.diagnostics`).
 """
 from __future__ import annotations
@@ -39,12 +40,15 @@ from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, Gu
 from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
-from .combined import CollectiveHeadroom, mix_with_attitude_priority
+from .combined import CollectiveHeadroom, mix_with_attitude_priority, thrust_first_at_floor
 from .deorbit import HOVER_ATTITUDE_POLES, DeorbitController, Phase, thrust_axis_attitude
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
 # s: the mean delay of that loop, p^2 / (s - p)^2, is 2 / |p|: the lag the QP plans the thrust axis with
 ATTITUDE_LAG = 2.0 / abs(MPC_ATTITUDE_POLE)
+#: The collective (of the axial thrust) above which the QP's braking has begun: from then on the mixer
+#: gives the QP's thrust first at its floor (:func:`.combined.thrust_first_at_floor`)
+BRAKING_COLLECTIVE = 0.5
 
 
 def local_frame(r_W: np.ndarray) -> np.ndarray:
@@ -184,6 +188,7 @@ class DeorbitMpcController(DeorbitController):
         self.thrust_L: np.ndarray | None = None
         self.headroom = CollectiveHeadroom()  # what the attitude law takes of the collective
         self._t_last = math.nan
+        self.braking_begun = False  # the QP has asked for over BRAKING_COLLECTIVE of the thrust
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         out = super().update(t, state, demand)
@@ -211,7 +216,15 @@ class DeorbitMpcController(DeorbitController):
         if t > self._t_last:
             self.headroom.update(top, mag / axial > 1.0 - top, t - self._t_last)
         self._t_last = t
-        u = saturate(mix_with_attitude_priority(mag / axial, diff))
+        collective = mag / axial
+        self.braking_begun = self.braking_begun or collective > BRAKING_COLLECTIVE
+        if self.braking_begun:
+            # Thrust first at the mixer's floor once the braking has begun: as the QP eases off at
+            # the end, the thrust flown is its thrust, not what the attitude law's turn needs
+            # (which climbed the lander over the demand: docs/deorbit.md, "The MPC's end"). Before,
+            # the turn onto the braking's direction needs that thrust and keeps it.
+            diff = thrust_first_at_floor(collective, diff)
+        u = saturate(mix_with_attitude_priority(collective, diff))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
 
     def _start(self, t: float, state: StateView, demand: Demand) -> None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lander_autopilot.controllers import Demand
-from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_attitude_priority
+from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_attitude_priority, thrust_first_at_floor
 from lander_autopilot.controllers.deorbit import DeorbitController, HoverCapture
 from lander_autopilot.controllers.ground_speed import GroundSpeedController
 from lander_sim.physics import constants as c
@@ -39,6 +39,21 @@ def test_headroom_learns_the_attitude_share_only_where_the_collective_is_capped(
     held = room.share
     room.update(0.0, False, 0.1)
     assert room.share == held
+
+
+def test_thrust_first_at_the_floor_flies_the_collective_asked_for():
+    d = np.array([0.20, -0.05, -0.20, 0.05])  # a turn the attitude law asks for
+    # under attitude priority a collective of 0.1 is raised to 0.2 (the lowest thruster at 0): thrust not asked for
+    assert float(mix_with_attitude_priority(0.1, d).mean()) == pytest.approx(0.2)
+    # thrust first: the differential shrinks by 0.1 / 0.2, the thrust flown is the 0.1 asked for
+    shrunk = thrust_first_at_floor(0.1, d)
+    np.testing.assert_allclose(shrunk, 0.5 * d, rtol=0, atol=1e-15)
+    u = mix_with_attitude_priority(0.1, shrunk)
+    assert float(u.mean()) == pytest.approx(0.1) and float(u.min()) == pytest.approx(0.0, abs=1e-15)
+    # no thrust asked for: none flown; a collective that carries the differential: unchanged
+    assert float(mix_with_attitude_priority(0.0, thrust_first_at_floor(0.0, d)).max()) == 0.0
+    assert thrust_first_at_floor(0.3, d) is d
+    np.testing.assert_array_equal(thrust_first_at_floor(0.1, np.abs(d)), np.abs(d))
 
 
 def test_braking_limb_runs_on_the_collective_left():

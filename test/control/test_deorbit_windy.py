@@ -278,3 +278,46 @@ def test_braking_takes_the_drift_out_before_its_shorter_end(monkeypatch):
     _, drift_before = _hover_start(164)
     print(f"ground speed as the hover begins: {drift_before:.3f} m/s (LAG 0.7 s, SETTLE 1.5 s) -> {drift:.3f} m/s")
     assert drift < speed < drift_before
+
+
+def _mpc_end(case_index: int) -> tuple[float, float]:
+    """MPC, core-only: (the most thrust flown over the QP's ask after the fall's end [share of the
+    axial thrust], the fuel from the powered descent's start to the first instant within the sweep's
+    band at its speed over the optimum)."""
+    from lander_tools.sweep.flight import _chute_open, powered_optimum
+
+    spec = load_spec(SPEC)
+    handover = None
+    stopped, excess = False, 0.0
+    for s, ctrl, sim in _flown(case_index, 1):
+        r = float(np.linalg.norm(s.r_W))
+        error, climb = r - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / r
+        if handover is None and ctrl.phase is Phase.POWERED:
+            handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), _chute_open(sim))
+        stopped = stopped or (handover is not None and abs(error) < spec.end.hover_band and climb >= 0.0)
+        if stopped and ctrl.phase is Phase.POWERED:
+            asked = float(np.linalg.norm(ctrl.thrust_L)) / (ctrl.axial * ctrl.thrust_calibration.scale)
+            excess = max(excess, float(np.mean(sim.throttles)) - min(asked, 1.0))
+        if handover is not None and abs(error) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+            return excess, (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
+    raise AssertionError("never within the band at its speed")
+
+
+@pytest.mark.slow  # two MPC flights and their optimum, ~60 s
+def test_mpc_eases_off_at_the_end_on_its_own_thrust_not_the_turns(monkeypatch):
+    """Case 118: the QP's last braking overshoots into a climb (0.3-0.4 m/s over the demand) and it
+    then asks for little or no thrust while its last small horizontal corrections ask the thrust
+    axis to turn. Under attitude priority the mixer raised the collective to what that turn's
+    differential needed (up to ~0.5 of the thrust where the QP asked for none), and the climb was
+    flown out on it: 1.085 x the optimum. Thrust first at the mixer's floor once the braking has
+    begun, the thrust flown is the QP's: 1.046 x."""
+    from lander_autopilot.controllers import deorbit_mpc
+
+    excess, ratio = _mpc_end(118)
+    monkeypatch.setattr(deorbit_mpc, "thrust_first_at_floor", lambda collective, d: d)
+    excess_before, ratio_before = _mpc_end(118)
+    print(f"most thrust flown over the QP's ask after the fall's end {excess_before:.3f} -> {excess:.3f} "
+          f"of the axial thrust; fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
+    assert excess_before > 0.1
+    assert excess < 1e-9
+    assert ratio < 1.05 < ratio_before

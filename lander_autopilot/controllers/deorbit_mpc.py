@@ -19,8 +19,9 @@ would start braking under the open chute) this law
 The thrust vector the QP asks for becomes a thrust-axis attitude (the quaternion attitude law,
 attitude priority; once the braking has begun, thrust first where the mixer's floor binds:
 :func:`.combined.thrust_first_at_floor`) and a collective throttle ``|T| / T_axial``. The phase
-ends as the scheduled law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand, the ground-speed law holds
-the hover. Core code (no rclpy); solve times are kept (:meth:`DeorbitMpcController.diagnostics`).
+ends as the scheduled law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand,
+the ground-speed law holds the hover. Core code (no rclpy); solve times are kept
+(:meth:`DeorbitMpcController.diagnostics`).
 """
 from __future__ import annotations
 

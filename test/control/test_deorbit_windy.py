@@ -298,7 +298,8 @@ def _mpc_end(case_index: int) -> tuple[float, float]:
         if stopped and ctrl.phase is Phase.POWERED:
             asked = float(np.linalg.norm(ctrl.thrust_L)) / (ctrl.axial * ctrl.thrust_calibration.scale)
             excess = max(excess, float(np.mean(sim.throttles)) - min(asked, 1.0))
-        if handover is not None and abs(error) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+        at_rest = float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed
+        if handover is not None and abs(error) <= spec.end.hover_band and at_rest:
             return excess, (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
     raise AssertionError("never within the band at its speed")
 

@@ -49,6 +49,7 @@ class Flight:
     touchdown_kind: str = ""
     diagnostics: dict[str, float] = field(default_factory=dict)
     wall: float = 0.0
+    period: float = math.nan  # the control period [s]: one simulation step a control update
 
 
 def fly(scene_name: str, law: str, hold: float = 30.0, land: bool = True, max_time: float = 10_000.0,
@@ -64,6 +65,7 @@ def fly(scene_name: str, law: str, hold: float = 30.0, land: bool = True, max_ti
     window: list[tuple[float, float]] = []  # (error, speed) over the current run in the band
     demand = Demand(altitude=target)
     t0 = time.perf_counter()
+    f.period = sim.dt
     while sim.t < max_time:
         s = sim.state()
         out = ctrl.update(sim.t, s, demand)
@@ -149,6 +151,10 @@ def main(argv: list[str] | None = None) -> int:
                       f"tilt {v['tilt_deg']:.2f} deg, fuel left {v['fuel_left']:.2f} kg")
             for k, val in f.diagnostics.items():
                 print(f"  {k} = {val:.6g}")
+            if "mpc_solve_time_p99" in f.diagnostics:  # issue 14: p99 below the control period
+                p99 = f.diagnostics["mpc_solve_time_p99"]
+                print(f"  MPC solve time p99 {1e3 * p99:.1f} ms: {'below' if p99 < f.period else 'OVER'} "
+                      f"the {1e3 * f.period:.0f} ms control period")
             rows.append((scene, law, h, vr, used, opt.fuel, opt.final_time, used / opt.fuel))
     print("\n| scene | law | handover altitude [m] | climb rate [m/s] | powered fuel flown [kg] | optimum [kg] "
           "| optimum t_f [s] | flown / optimum |")

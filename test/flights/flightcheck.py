@@ -1,6 +1,13 @@
 """Fly a shipped scripted flight, record it, and check the bag with two independent readers."""
 from __future__ import annotations
 
+import os
+import queue
+import re
+import subprocess
+import sys
+import threading
+import time
 from collections import Counter
 from pathlib import Path
 
@@ -55,3 +62,55 @@ def check_bag(bag_path: Path, result: FlightResult) -> Bag:
         check_span(bag_path, result.sim_time, lockstep=counts.get("/lander/throttle", 0) > 0,
                    sim_only_events=not with_autopilot)
     return bag
+
+
+def start_fly(script: Path, bag: Path, *args: str) -> tuple[subprocess.Popen, queue.Queue[str | None]]:
+    """``lander fly SCRIPT --record BAG --no-progress ARGS`` as a process of its own (signals reach it
+    alone); its output lines arrive in the returned queue, then None at its end (:func:`wait_line`,
+    :func:`drain`)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lander_tools.cli", "fly", str(script), "--record", str(bag), "--no-progress", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
+    lines: queue.Queue[str | None] = queue.Queue()
+
+    def read() -> None:
+        for line in proc.stdout:  # type: ignore[union-attr]
+            lines.put(line)
+        lines.put(None)  # the end of the output
+
+    threading.Thread(target=read, daemon=True).start()
+    return proc, lines
+
+
+def wait_line(lines: queue.Queue[str | None], pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
+    """The first line matching ``pattern`` (every line read goes into ``log``); AssertionError after
+    ``timeout`` wall seconds without one."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=deadline - time.monotonic())
+        except queue.Empty:
+            break
+        if line is None:
+            lines.put(None)  # the end stays visible to drain()
+            break
+        log.append(line)
+        if m := re.search(pattern, line):
+            return m
+    raise AssertionError(f"no line matching {pattern!r} within {timeout} s:\n" + "".join(log))
+
+
+def drain(lines: queue.Queue[str | None], log: list[str], timeout: float = 30.0) -> str:
+    """Everything logged and the rest of the output up to its end (at most ``timeout`` s), as one text."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=deadline - time.monotonic())
+        except queue.Empty:
+            break
+        if line is None:
+            break
+        log.append(line)
+    return "".join(log)

@@ -8,9 +8,6 @@ import queue
 import re
 import signal
 import subprocess
-import sys
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +15,7 @@ import psutil
 
 from lander_tools.bagio import read_bag
 
-from .flightcheck import FLIGHT_TOPICS, REPO, mcap_counts
+from .flightcheck import FLIGHT_TOPICS, drain, mcap_counts, start_fly, wait_line
 
 SCRIPT = """
 name: long-spin
@@ -32,31 +29,11 @@ timeline:
 """
 
 
-def _start(tmp_path: Path) -> tuple[subprocess.Popen, queue.Queue[str], Path]:
+def _start(tmp_path: Path) -> tuple[subprocess.Popen, queue.Queue[str | None], Path]:
     (tmp_path / "long.yaml").write_text(SCRIPT)
     bag = tmp_path / "bag"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "lander_tools.cli", "fly", str(tmp_path / "long.yaml"), "--record", str(bag),
-         "--no-progress", "--topics", *FLIGHT_TOPICS],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
-        env=dict(os.environ, PYTHONPATH=str(REPO)),
-    )
-    lines: queue.Queue[str] = queue.Queue()
-    threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
+    proc, lines = start_fly(tmp_path / "long.yaml", bag, "--topics", *FLIGHT_TOPICS)
     return proc, lines, bag
-
-
-def _wait_line(lines: queue.Queue[str], pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=deadline - time.monotonic())
-        except queue.Empty:
-            break
-        log.append(line)
-        if m := re.search(pattern, line):
-            return m
-    raise AssertionError(f"no line matching {pattern!r} within {timeout} s:\n" + "".join(log))
 
 
 def _check_prefix_bag(bag: Path, t_min: float) -> None:
@@ -76,14 +53,14 @@ def test_killing_the_sim_mid_flight_leaves_a_valid_bag_and_status_2(tmp_path: Pa
     proc, lines, bag = _start(tmp_path)
     log: list[str] = []
     try:
-        pid = int(_wait_line(lines, r"pids sim (\d+)", log).group(1))
-        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)  # the flight is under way
+        pid = int(wait_line(lines, r"pids sim (\d+)", log).group(1))
+        wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)  # the flight is under way
         os.kill(pid, signal.SIGKILL)
         rc = proc.wait(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
-    out = "".join(log) + "".join(iter(lambda: lines.get() if not lines.empty() else "", ""))
+    out = drain(lines, log)
     assert rc == 2, out
     assert "node process 'sim' exited with code -9" in out
     _check_prefix_bag(bag, 3.0)
@@ -94,7 +71,7 @@ def test_ctrl_c_stops_cleanly_with_a_valid_bag_and_status_130(tmp_path: Path) ->
     proc, lines, bag = _start(tmp_path)
     log: list[str] = []
     try:
-        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
+        wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
         proc.send_signal(signal.SIGINT)
         rc = proc.wait(timeout=60)
     finally:
@@ -111,9 +88,9 @@ def test_a_launcher_killed_outright_takes_its_nodes_with_it(tmp_path: Path) -> N
     proc, lines, _ = _start(tmp_path)
     log: list[str] = []
     try:
-        m = _wait_line(lines, r"pids (.*)$", log)
+        m = wait_line(lines, r"pids (.*)$", log)
         pids = [int(p) for p in re.findall(r"\d+", m.group(1))]
-        _wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
+        wait_line(lines, r"\[fly\] t = 3\.00 s: throttle", log)
         nodes = [psutil.Process(p) for p in pids]
         proc.kill()
         proc.wait(timeout=10)

@@ -9,17 +9,13 @@ a stall lost 1-10 messages each time; the bag is checked here with the independe
 from __future__ import annotations
 
 import os
-import re
 import signal
-import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
 from lander_ros.delivery import OUTPUT_DEPTH
 
-from .flightcheck import REPO
+from .flightcheck import drain, start_fly, wait_line
 from .spancheck import check_span
 
 STALL = 1.0  # s: how long the recorder's process is stopped each time
@@ -45,25 +41,11 @@ def test_a_recorder_stopped_for_a_second_loses_nothing(tmp_path: Path) -> None:
     assert OUTPUT_DEPTH >= 1200 * (STALL + 3.0)
     (tmp_path / "f.yaml").write_text(SCRIPT)
     bag = tmp_path / "bag"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "lander_tools.cli", "fly", str(tmp_path / "f.yaml"), "--record", str(bag),
-         "--no-progress"],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
-        env=dict(os.environ, PYTHONPATH=str(REPO)),
-    )
+    proc, lines = start_fly(tmp_path / "f.yaml", bag)
     log: list[str] = []
-    under_way = threading.Event()
-
-    def read() -> None:
-        for line in proc.stdout:  # type: ignore[union-attr]
-            log.append(line)
-            if re.search(r"\[fly\] t = [\d.]+ s: demand_altitude 501", line):  # the timeline's action: flying
-                under_way.set()
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
     try:
-        assert under_way.wait(120.0), "the flight never reached t = 20 s:\n" + "".join(log)
+        # the timeline's action at t = 20 s: the flight is under way
+        wait_line(lines, r"\[fly\] t = [\d.]+ s: demand_altitude 501", log, timeout=120.0)
         stalls_in_flight = 0
         for _ in range(STALLS):
             os.kill(proc.pid, signal.SIGSTOP)
@@ -76,8 +58,7 @@ def test_a_recorder_stopped_for_a_second_loses_nothing(tmp_path: Path) -> None:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGCONT)
             proc.kill()
-    reader.join(timeout=10)
-    out = "".join(log)
+    out = drain(lines, log)
     assert rc == 0, out
     assert stalls_in_flight == STALLS, f"the flight ended before its stalls were over:\n{out}"
     assert "complete: every message published in the flight is in it" in out, out

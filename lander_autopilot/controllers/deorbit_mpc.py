@@ -214,10 +214,10 @@ class DeorbitMpcController(DeorbitController):
         diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
         top = float(diff.max())
         axial = self.axial * self.thrust_calibration.scale  # the axial thrust the burn measured
-        if t > self._t_last:
-            self.headroom.update(top, mag / axial > 1.0 - top, t - self._t_last)
-        self._t_last = t
         collective = mag / axial
+        if t > self._t_last:
+            self.headroom.update(top, collective > 1.0 - top, t - self._t_last)
+        self._t_last = t
         self.braking_begun = self.braking_begun or collective > BRAKING_COLLECTIVE
         if self.braking_begun:
             # Thrust first at the mixer's floor once the braking has begun: as the QP eases off at

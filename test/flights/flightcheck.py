@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 
 from lander_tools.bagio import Bag, read_bag
@@ -84,18 +85,25 @@ def start_fly(script: Path, bag: Path, *args: str) -> tuple[subprocess.Popen, qu
     return proc, lines
 
 
+def _read_lines(lines: queue.Queue[str | None], timeout: float) -> Iterator[str]:
+    """The output's lines as they arrive, until its end or ``timeout`` wall seconds; the end stays
+    queued for the next reader."""
+    deadline = time.monotonic() + timeout
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            line = lines.get(timeout=left)
+        except queue.Empty:
+            return
+        if line is None:
+            lines.put(None)
+            return
+        yield line
+
+
 def wait_line(lines: queue.Queue[str | None], pattern: str, log: list[str], timeout: float = 60.0) -> re.Match:
     """The first line matching ``pattern`` (every line read goes into ``log``); AssertionError after
-    ``timeout`` wall seconds without one."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=deadline - time.monotonic())
-        except queue.Empty:
-            break
-        if line is None:
-            lines.put(None)  # the end stays visible to drain()
-            break
+    ``timeout`` wall seconds or the output's end without one."""
+    for line in _read_lines(lines, timeout):
         log.append(line)
         if m := re.search(pattern, line):
             return m
@@ -104,13 +112,5 @@ def wait_line(lines: queue.Queue[str | None], pattern: str, log: list[str], time
 
 def drain(lines: queue.Queue[str | None], log: list[str], timeout: float = 30.0) -> str:
     """Everything logged and the rest of the output up to its end (at most ``timeout`` s), as one text."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=deadline - time.monotonic())
-        except queue.Empty:
-            break
-        if line is None:
-            break
-        log.append(line)
+    log.extend(_read_lines(lines, timeout))
     return "".join(log)

@@ -15,11 +15,16 @@ touchdown listed in ``end_on``): it publishes the state of that instant, one las
 a new scene. The event's ``values`` are::
 
     [t_end, reason, n(/clock), n(/lander/state), n(/lander/odom), n(/lander/pose),
-     n(/lander/markers), n(/lander/events), n(/diagnostics)]
+     n(/lander/markers), n(/lander/events), n(/diagnostics), lockstep_timeouts]
 
-``t_end`` [s] the end instant, ``reason`` an index into :data:`END_REASONS`, and ``n(topic)`` the
+``t_end`` [s] the end instant, ``reason`` an index into :data:`END_REASONS`, ``n(topic)`` the
 messages the simulator published on that topic since the flight's reset (``/lander/events``
-includes this event). Its ``detail`` says the same in words.
+includes this event), and ``lockstep_timeouts`` the states of this flight the simulator advanced
+past without the controller's answer (its ``lockstep_timeout``): in lockstep the autopilot answers
+every state once, except these, so a recording's ``/lander/throttle`` holds ``n(/lander/state) -
+lockstep_timeouts`` answers or more (an answer may come after its timeout), and a flight with any
+is not the deterministic one. Events recorded before it was added have no last value (read as 0).
+Its ``detail`` says the same in words.
 
 Every flight has a number (0 the node's first, one more at each reset or scene load), in the
 simulator's ``/diagnostics`` (key ``flight``) and in its pause answer (``..., flight N``,
@@ -49,33 +54,39 @@ END_ON_CHOICES: tuple[str, ...] = ("landed", "crashed")
 
 @dataclass
 class FlightEnd:
-    """A decoded ``FLIGHT_ENDED``: end instant [s], reason and messages published per topic."""
+    """A decoded ``FLIGHT_ENDED``: end instant [s], reason, messages published per topic and the
+    states advanced past without the controller's answer (``lockstep_timeouts``)."""
 
     t: float
     reason: str
     counts: dict[str, int] = field(default_factory=dict)
+    lockstep_timeouts: int = 0
 
     def values(self) -> list[float]:
         """The event's ``values`` array (see the module docstring)."""
         return [float(self.t), float(END_REASONS.index(self.reason))] + [
             float(self.counts.get(topic, 0)) for topic in COUNTED_TOPICS
-        ]
+        ] + [float(self.lockstep_timeouts)]
 
     def detail(self) -> str:
         """One line a person reads: when, why and what was published."""
         counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in COUNTED_TOPICS)
-        return f"flight ended at t = {self.t!r} s ({self.reason}); published since the reset: {counts}"
+        missed = f"; {self.lockstep_timeouts} lockstep timeouts" if self.lockstep_timeouts else ""
+        return f"flight ended at t = {self.t!r} s ({self.reason}); published since the reset: {counts}{missed}"
 
     @classmethod
     def from_values(cls, values: list[float]) -> FlightEnd:
         """Decode an event's ``values``; ValueError naming what is wrong with them."""
         n = 2 + len(COUNTED_TOPICS)
-        if len(values) != n:
-            raise ValueError(f"FLIGHT_ENDED carries {len(values)} values, expected {n} (t_end, reason, counts)")
+        if len(values) not in (n, n + 1):
+            raise ValueError(f"FLIGHT_ENDED carries {len(values)} values, expected {n + 1} "
+                             "(t_end, reason, counts, lockstep_timeouts)")
         code = int(values[1])
         if not 0 <= code < len(END_REASONS) or code != values[1]:
             raise ValueError(f"FLIGHT_ENDED reason {values[1]!r} is not an index into {END_REASONS}")
-        return cls(float(values[0]), END_REASONS[code], {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:])})
+        timeouts = int(values[n]) if len(values) > n else 0  # recorded before the count was added: none known
+        return cls(float(values[0]), END_REASONS[code], {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:n])},
+                   timeouts)
 
 
 def parse_end_on(text: str) -> tuple[str, ...]:

@@ -129,6 +129,7 @@ class SimNode(Node):
         self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
         #: Messages published per output topic since the last reset (reported by FLIGHT_ENDED).
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)
+        self._timeouts_at_reset = 0  # health.lockstep_timeouts at the flight's reset (FLIGHT_ENDED counts this flight's)
 
         self.sim: SimAdapter = self._load(self._param("scene"))
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
@@ -296,11 +297,12 @@ class SimNode(Node):
 
     def _end_flight(self, reason: str) -> None:
         """Stop at the end instant (its state is out): a last /diagnostics, then FLIGHT_ENDED with the
-        counts of everything published since the reset (lander_ros.flight_span), then nothing
+        counts of everything published since the reset and of the lockstep timeouts in this flight
+        (lander_ros.flight_span), then nothing
         more until a reset; so a recording ends here whatever its launcher does next."""
         self._publish_diagnostics(time.monotonic())
         self._counts["/lander/events"] += 1  # the FLIGHT_ENDED itself
-        end = FlightEnd(self.sim.t, reason, dict(self._counts))
+        end = FlightEnd(self.sim.t, reason, dict(self._counts), self.health.lockstep_timeouts - self._timeouts_at_reset)
         self._counts["/lander/events"] -= 1  # _publish_event counts it again
         self._publish_event(FlightEvent.FLIGHT_ENDED, end.detail(), end.values())
         self.get_logger().debug(end.detail())
@@ -673,6 +675,7 @@ class SimNode(Node):
         self._flight += 1
         pending = self.gate.reset()  # running stays running; paused, held or ended: paused
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
+        self._timeouts_at_reset = self.health.lockstep_timeouts
         self._check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()
         self._cmd_t, self._stale = None, False

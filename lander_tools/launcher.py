@@ -188,6 +188,9 @@ class FlightResult:
     touchdown_class: str = ""
     #: The bag's counts against what was published (close_and_check_bag).
     bag_check: str = ""
+    #: Lockstep states the sim advanced past without the autopilot's answer (its FLIGHT_ENDED): with
+    #: any, the flight is not the deterministic one (the autopilot was late, e.g. starved of CPU).
+    lockstep_timeouts: int = 0
 
 
 def resolve_controller(plan: FlightPlan) -> str | None:
@@ -1062,7 +1065,9 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
     * the sim's own outputs: its FLIGHT_ENDED counts, exactly (``/lander/events`` too when the sim
       is its only publisher);
     * ``/lander/throttle``: in lockstep exactly one answer per state (the sim's ``/lander/state``
-      count: the autopilot answers every lockstep state once, the end state too); otherwise at least
+      count: the autopilot answers every lockstep state once, the end state too), or, if the sim
+      advanced past some states without their answer (``FlightEnd.lockstep_timeouts``), at least one
+      per state less those (an answer may still come after its timeout); otherwise at least
       what this launcher's own subscription received since the reset (nobody commands before the
       first state; that subscription can lose messages on a loaded machine, so it is no exact count);
     * ``/autopilot/status`` and, with an autopilot, ``/lander/events``: at least that (the
@@ -1077,7 +1082,8 @@ def reference_counts(sup: _Supervisor) -> dict[str, tuple[int, bool]]:
     if sup.flight_end is not None:
         ref.update({t: (n, True) for t, n in sup.flight_end.counts.items()})
     if sup.lockstep and sup.controller is not None and sup.flight_end is not None:
-        ref["/lander/throttle"] = (sup.flight_end.counts.get("/lander/state", 0), True)
+        missed = sup.flight_end.lockstep_timeouts
+        ref["/lander/throttle"] = (sup.flight_end.counts.get("/lander/state", 0) - missed, missed == 0)
     else:
         ref["/lander/throttle"] = (sup.received.get("/lander/throttle", 0), False)
     if sup.controller is not None:
@@ -1154,6 +1160,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
         # the sim's count of the states it published (this node's watch may have lost some under load)
         states = end.counts.get("/lander/state", sup.states)
         result = FlightResult(end.reason, EXIT_CRASHED if end.reason == "crashed" else EXIT_OK, end.t, states)
+        result.lockstep_timeouts = end.lockstep_timeouts
     except _Interrupted:
         result = _failed(f, "interrupted", EXIT_INTERRUPTED, f"stopped by {f.stop_reason[0] if f.stop_reason else 'signal'}")
     except _NodeDied as exc:
@@ -1281,6 +1288,9 @@ def summary(result: FlightResult) -> str:
         lines.append(f"  touchdown at t = {_figure(td.get('t_impact', math.nan), '.3f', 's')}: " + ", ".join(figures))
     elif f:
         lines.append("  touchdown: n/a (none in this flight)")
+    if result.lockstep_timeouts:
+        lines.append(f"  lockstep: the sim advanced past {result.lockstep_timeouts} states without the autopilot's "
+                     "answer (lockstep_timeout): not the deterministic flight (was the machine starved of CPU?)")
     if result.bag is not None:
         lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages; {result.bag_check})")
     return "\n".join(lines)

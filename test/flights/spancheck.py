@@ -109,5 +109,6 @@ def check_span(bag: Path, end_t: float | None = None, lockstep: bool = False,
         assert sorted(s.answers) == s.state_seq, (
             f"answers: {len(s.answers)} for {len(s.state_seq)} states; unanswered "
             f"{sorted(set(s.state_seq) - set(s.answers))[:10]}, repeated "
-            f"{sorted(k for k, c in Counter(s.answers).items() if c > 1)[:10]}")
+            f"{sorted(k for k, c in Counter(s.answers).items() if c > 1)[:10]}; the sim advanced past "
+            f"{end.lockstep_timeouts} states without their answer (FLIGHT_ENDED's lockstep timeouts)")
     return s

@@ -1,0 +1,31 @@
+"""The FLIGHT_ENDED event's values (lander_ros.flight_span): encoded and decoded, old layout too."""
+from __future__ import annotations
+
+import pytest
+
+from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd
+
+
+def test_the_values_carry_the_counts_and_the_lockstep_timeouts_and_decode_back() -> None:
+    counts = {t: 10 * i + 1 for i, t in enumerate(COUNTED_TOPICS)}
+    end = FlightEnd(12.5, "landed", counts, lockstep_timeouts=3)
+    values = end.values()
+    assert len(values) == 2 + len(COUNTED_TOPICS) + 1 and values[-1] == 3.0
+    assert FlightEnd.from_values(values) == end
+    assert "3 lockstep timeouts" in end.detail()
+    assert "lockstep" not in FlightEnd(1.0, "time-limit", counts).detail()  # none: not mentioned
+
+
+def test_an_event_recorded_before_the_timeout_count_decodes_with_none() -> None:
+    counts = {t: 5 for t in COUNTED_TOPICS}
+    old = [2.0, 0.0] + [5.0] * len(COUNTED_TOPICS)  # the layout of bags recorded before stop 33
+    assert FlightEnd.from_values(old) == FlightEnd(2.0, "time-limit", counts, 0)
+
+
+@pytest.mark.parametrize("values, words", [
+    ([1.0, 0.0], "carries 2 values"),
+    ([1.0, 7.0] + [0.0] * (len(COUNTED_TOPICS) + 1), "reason 7.0 is not an index"),
+])
+def test_a_malformed_event_is_named(values: list[float], words: str) -> None:
+    with pytest.raises(ValueError, match=words):
+        FlightEnd.from_values(values)

@@ -33,23 +33,6 @@ def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> n
     return min(max(collective, -lo), 1.0 - hi) + d
 
 
-def thrust_first_at_floor(collective: float, differential: np.ndarray) -> np.ndarray:
-    """The differential shrunk so that ``collective + differential`` needs no thruster below 0.
-
-    Where the collective asked for is below what the differential takes from its lowest thruster
-    (``-min(d)``), :func:`mix_with_attitude_priority` raises the collective to fit: thrust nobody
-    asked for, as much as the attitude law's turn needs. A law that plans its thrust (the
-    de-orbit MPC) and asks for little at the end of its braking then climbs on it (scenario 0's
-    orbit, case 101: +0.8 m/s over the demand, flown out over 1.2 s at 0.2-0.4 of the collective,
-    1.15 x the optimum's fuel). Shrunk, the thrust flown is the thrust asked for and the turn waits
-    for thrust to make it with (its torque is thrust too).
-    """
-    lo = float(differential.min())
-    if lo >= 0.0 or collective >= -lo:
-        return differential
-    return differential * (max(collective, 0.0) / -lo)
-
-
 @dataclass
 class CollectiveHeadroom:
     """The share of the collective throttle the attitude law takes when the mixer's ceiling binds.

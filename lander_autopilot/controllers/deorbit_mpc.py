@@ -17,10 +17,10 @@ would start braking under the open chute) this law
    re-linearised), within the throttle limit, the tilt limit and a glide slope.
 
 The thrust vector the QP asks for becomes a thrust-axis attitude (the quaternion attitude law,
-attitude priority; once the braking has begun, thrust first where the mixer's floor binds:
-:func:`.combined.thrust_first_at_floor`) and a collective throttle ``|T| / T_axial``. The phase
-ends as the scheduled law's does: within ``hover_band`` m and ``hover_speed`` m/s of the demand,
-the ground-speed law holds the hover. Core code (no rclpy); solve times are kept
+attitude priority) and a collective throttle ``|T| / T_axial``; once the braking has begun, the
+thrust no more than stops the fall within the period (:meth:`DeorbitMpcController._stop_within_period`).
+The phase ends as the scheduled law's does: within ``hover_band`` m and ``hover_speed`` m/s of the
+demand, the ground-speed law holds the hover. Core code (no rclpy); solve times are kept
 (:meth:`DeorbitMpcController.diagnostics`).
 """
 from __future__ import annotations
@@ -36,29 +36,21 @@ from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 from ..design.altitude import vertical_thrust
+from ..design.translational import local_frame
 from ..guidance.descent_mpc import DescentMpc, MpcSettings
 from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError
 from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
-from .combined import CollectiveHeadroom, mix_with_attitude_priority, thrust_first_at_floor
+from .combined import CollectiveHeadroom, mix_with_attitude_priority
 from .deorbit import HOVER_ATTITUDE_POLES, DeorbitController, Phase, thrust_axis_attitude
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
 # s: the mean delay of that loop, p^2 / (s - p)^2, is 2 / |p|: the lag the QP plans the thrust axis with
 ATTITUDE_LAG = 2.0 / abs(MPC_ATTITUDE_POLE)
-#: The collective (of the axial thrust) above which the QP's braking has begun: from then on the mixer
-#: gives the QP's thrust first at its floor (:func:`.combined.thrust_first_at_floor`)
+#: The collective (of the axial thrust) above which the QP's braking has begun: from then on its thrust
+#: is capped to what stops the fall within a period (:meth:`DeorbitMpcController._stop_within_period`)
 BRAKING_COLLECTIVE = 0.5
-
-
-def local_frame(r_W: np.ndarray) -> np.ndarray:
-    """Rows ``(east, north, up)`` of the local ENU frame at ``r_W`` (docs/control.md, ``local_enu``)."""
-    up = np.asarray(r_W, float) / float(np.linalg.norm(r_W))
-    east = np.cross([0.0, 0.0, 1.0], up)
-    n = float(np.linalg.norm(east))
-    east = np.array([1.0, 0.0, 0.0]) if n < 1e-9 else east / n
-    return np.vstack([east, np.cross(up, east), up])
 
 
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
@@ -205,9 +197,12 @@ class DeorbitMpcController(DeorbitController):
         d = L @ (state.r_W - r0)
         p_L = np.array([d[0], d[1], h])
         v_L = L @ state.v_W
-        T_L = self.mpc.command(t - self._t_handover, p_L, v_L, self.vehicle.mass(state.fuel),
-                               thrust_axis_L=L @ quat_to_matrix(state.q)[2],
+        axis_L = L @ quat_to_matrix(state.q)[2]  # the thrust axis flown now
+        mass = self.vehicle.mass(state.fuel)
+        T_L = self.mpc.command(t - self._t_handover, p_L, v_L, mass, thrust_axis_L=axis_L,
                                available=self.headroom.available)
+        if self.braking_begun:
+            T_L = self._stop_within_period(T_L, mass, h, v_L, float(axis_L[2]), state.r_W)
         self.thrust_L = T_L  # the QP's thrust this period [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
@@ -219,14 +214,33 @@ class DeorbitMpcController(DeorbitController):
             self.headroom.update(top, collective > 1.0 - top, t - self._t_last)
         self._t_last = t
         self.braking_begun = self.braking_begun or collective > BRAKING_COLLECTIVE
-        if self.braking_begun:
-            # Thrust first at the mixer's floor once the braking has begun: as the QP eases off at
-            # the end, the thrust flown is its thrust, not what the attitude law's turn needs
-            # (which climbed the lander over the demand: docs/deorbit.md, "The MPC's end"). Before,
-            # the turn onto the braking's direction needs that thrust and keeps it.
-            diff = thrust_first_at_floor(collective, diff)
         u = saturate(mix_with_attitude_priority(collective, diff))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
+
+    def _stop_within_period(self, T_L: np.ndarray, mass: float, h: float, v_L: np.ndarray, axis_up: float,
+                            r_W: np.ndarray) -> np.ndarray:
+        """The QP's thrust ``T_L`` [N, local ENU], shortened so that, flown along the thrust axis
+        (its up component ``axis_up``), it cannot turn the fall into a climb within one control period.
+
+        While falling (``v_up < 0``), ``|T| <= m (g - a_D,up - v_up / dt) / axis_up`` with ``dt`` the
+        period the command is held (``MpcSettings.hold_time``), ``g`` at ``r_W`` and ``a_D,up`` the plan's
+        drag (the fitted air) at the altitude ``h`` [m] and velocity ``v_L`` [m/s]; ``axis_up`` is
+        floored at 0.5 (a tilted axis does not grow the cap without bound). The scheduled law's
+        one-period cap (:meth:`.deorbit.DescentToAltitude.vertical_acceleration`). Why: at the end
+        the QP's steps are 15 ms (its last ``min_time_to_go`` over ``H`` steps), and its last braking
+        command, held for a whole period, overshot rest into a climb of 0.3-0.4 m/s (stop 32's traces) that the hover then
+        flew out on hover thrust (docs/deorbit.md, "The MPC's last period (stop 33)").
+        Replayed from scenario 0's sweep, held 30 s: 195 -> 199 of 200 within 1.05 x, no flight worse.
+        """
+        mpc = self.mpc
+        if v_L[2] >= 0.0 or mpc is None:
+            return T_L
+        g = c.GM_MARS / float(r_W @ r_W)
+        drag_up = 0.0 if mpc.drag is None else float(
+            mpc.drag.acceleration(np.array([[0.0, 0.0, h]]), v_L[None, :], np.array([mass]))[0, 2])
+        cap = mass * (g - drag_up - float(v_L[2]) / self.settings.hold_time) / max(axis_up, 0.5)
+        mag = float(np.linalg.norm(T_L))
+        return T_L * (cap / mag) if mag > cap > 0.0 else T_L
 
     def _start(self, t: float, state: StateView, demand: Demand) -> None:
         import time

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lander_autopilot.controllers import Demand
-from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_attitude_priority, thrust_first_at_floor
+from lander_autopilot.controllers.combined import CollectiveHeadroom, mix_with_attitude_priority
 from lander_autopilot.controllers.deorbit import DeorbitController, HoverCapture
 from lander_autopilot.controllers.ground_speed import GroundSpeedController
 from lander_sim.physics import constants as c
@@ -41,19 +41,33 @@ def test_headroom_learns_the_attitude_share_only_where_the_collective_is_capped(
     assert room.share == held
 
 
-def test_thrust_first_at_the_floor_flies_the_collective_asked_for():
-    d = np.array([0.20, -0.05, -0.20, 0.05])  # a turn the attitude law asks for
-    # under attitude priority a collective of 0.1 is raised to 0.2 (the lowest thruster at 0): thrust not asked for
-    assert float(mix_with_attitude_priority(0.1, d).mean()) == pytest.approx(0.2)
-    # thrust first: the differential shrinks by 0.1 / 0.2, the thrust flown is the 0.1 asked for
-    shrunk = thrust_first_at_floor(0.1, d)
-    np.testing.assert_allclose(shrunk, 0.5 * d, rtol=0, atol=1e-15)
-    u = mix_with_attitude_priority(0.1, shrunk)
-    assert float(u.mean()) == pytest.approx(0.1) and float(u.min()) == pytest.approx(0.0, abs=1e-15)
-    # no thrust asked for: none flown; a collective that carries the differential: unchanged
-    assert float(mix_with_attitude_priority(0.0, thrust_first_at_floor(0.0, d)).max()) == 0.0
-    assert thrust_first_at_floor(0.3, d) is d
-    np.testing.assert_array_equal(thrust_first_at_floor(0.1, np.abs(d)), np.abs(d))
+def test_mpc_last_braking_command_stops_the_fall_within_its_period_not_into_a_climb():
+    from types import SimpleNamespace
+
+    from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
+    from lander_autopilot.guidance.fuel_optimal import DragModel
+
+    vehicle = lander("canted")
+    ctrl = DeorbitMpcController(vehicle)
+    ctrl.reset()
+    drag = DragModel(k=20.0, surface_density=0.02, scale_height=11100.0, wind_L=(1.0, 0.0, 0.5))
+    ctrl.mpc = SimpleNamespace(drag=drag)  # the plan's drag model is all the cap reads of the QP
+    mass, h, dt = vehicle.mass(50.0), 500.0, ctrl.settings.hold_time
+    r_W = np.array([0.0, 0.0, c.MARS_RADIUS + h])
+    g = c.GM_MARS / float(r_W @ r_W)
+    v_L = np.array([0.3, -0.1, -0.25])  # 0.25 m/s still to stop
+    axis = np.array([0.1, 0.0, 1.0]) / math.hypot(0.1, 1.0)  # the thrust axis flown (tilted)
+    asked = 2.0 * mass * g * axis  # the QP's last braking command: ~g over the weight, 0.37 m/s in 0.1 s
+    T = ctrl._stop_within_period(asked, mass, h, v_L, float(axis[2]), r_W)
+    # flown along the axis for one period, the vertical speed ends at rest, not climbing
+    drag_up = float(drag.acceleration(np.array([[0.0, 0.0, h]]), v_L[None, :], np.array([mass]))[0, 2])
+    v_end = v_L[2] + dt * (float(np.linalg.norm(T)) * axis[2] / mass - g + drag_up)
+    assert v_end == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(T / np.linalg.norm(T), axis, rtol=0, atol=1e-15)  # its direction kept
+    # a command that does not reverse the fall, or a lander already climbing: unchanged
+    gentle = 0.9 * mass * g * axis
+    assert ctrl._stop_within_period(gentle, mass, h, v_L, float(axis[2]), r_W) is gentle
+    assert ctrl._stop_within_period(asked, mass, h, np.array([0.0, 0.0, 0.1]), float(axis[2]), r_W) is asked
 
 
 def test_braking_limb_runs_on_the_collective_left():

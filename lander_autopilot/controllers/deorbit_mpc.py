@@ -203,7 +203,7 @@ class DeorbitMpcController(DeorbitController):
                                available=self.headroom.available)
         if self.braking_begun:
             T_L = self._stop_within_period(T_L, mass, h, v_L, float(axis_L[2]), state.r_W)
-        self.thrust_L = T_L  # the QP's thrust this period [N, handover's local ENU frame]
+        self.thrust_L = T_L  # the QP's thrust this period, capped [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
         diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
@@ -228,9 +228,10 @@ class DeorbitMpcController(DeorbitController):
         floored at 0.5 (a tilted axis does not grow the cap without bound). The scheduled law's
         one-period cap (:meth:`.deorbit.DescentToAltitude.vertical_acceleration`). Why: at the end
         the QP's steps are 15 ms (its last ``min_time_to_go`` over ``H`` steps), and its last braking
-        command, held for a whole period, overshot rest into a climb of 0.3-0.4 m/s (stop 32's traces) that the hover then
-        flew out on hover thrust (docs/deorbit.md, "The MPC's last period (stop 33)").
-        Replayed from scenario 0's sweep, held 30 s: 195 -> 199 of 200 within 1.05 x, no flight worse.
+        command, held for a whole period, overshot rest into a climb (scenario 0's case 96: 0.8-0.9
+        m/s) that was then flown out (docs/deorbit.md, "The MPC's last period (stop 33)"). Replayed
+        from the sweeps, held 30 s: within 1.05 x 195 -> 199 of 200 (scenario 0's orbit) and 197 ->
+        197 (200 km; within 1.03 x 139 -> 151), no flight worse.
         """
         mpc = self.mpc
         if v_L[2] >= 0.0 or mpc is None:

@@ -58,6 +58,7 @@ from lander_tools.sweep.metrics import settled_index, settling_time
 # analysis needs neither rclpy nor the built interfaces.
 EV_LANDED, EV_CRASHED, EV_GIMBAL_LOCK, EV_CONTROLLER_SWITCHED = 0, 1, 2, 7
 EV_HARD_LANDING = 9  # FlightEvent.msg: over the scene's safe touchdown limits, under its crash limits
+EV_FLIGHT_ENDED = 12  # FlightEvent.msg: the sim's end of the flight, with its counts (lander_ros.flight_span)
 PHASE_NAMES = {0: "flying", 1: "landed", 2: "crashed"}
 
 

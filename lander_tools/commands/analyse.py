@@ -121,3 +121,19 @@ def _print_span(path: Path, bag) -> None:
     span = bag_span(s["t"], s["sequence"])
     flag = "warning: " if span.problems() else ""
     print(f"lander analyse: {flag}{path}: states {span.describe()}", file=sys.stderr)
+    # A lockstep flight whose sim advanced without some answers is not the deterministic one: its
+    # FLIGHT_ENDED says how many (lander_ros.flight_span); bags recorded before the count read 0.
+    from lander_ros.flight_span import FlightEnd
+    from lander_tools.analysis import EV_FLIGHT_ENDED
+
+    for m in bag.messages("/lander/events") if "/lander/events" in bag.topics else []:
+        if int(m.kind) != EV_FLIGHT_ENDED:
+            continue
+        try:
+            missed = FlightEnd.from_values(list(m.values)).lockstep_timeouts
+        except ValueError as exc:
+            print(f"lander analyse: warning: {path}: unreadable FLIGHT_ENDED: {exc}", file=sys.stderr)
+            continue
+        if missed:
+            print(f"lander analyse: warning: {path}: the sim advanced past {missed} states without the "
+                  "controller's answer (lockstep timeouts): not the deterministic flight", file=sys.stderr)

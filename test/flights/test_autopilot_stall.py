@@ -5,17 +5,19 @@ the sim advances past states without their answer (each one a lockstep timeout).
 not the deterministic one, but its bag still holds every message published: the answers the
 autopilot never sent are not "missing from the bag". The sim's ``FLIGHT_ENDED`` counts the
 timeouts (lander_ros.flight_span), the launcher's bag check expects one answer per state less those,
-and its summary names them. Before that count existed the check reported the unsent answers as
+and its summary and ``lander analyse`` name them. Before that count existed the check reported the unsent answers as
 published and lost (docs/reliability.md, "Delivery").
 """
 from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
-from .flightcheck import drain, start_fly, wait_line
+from .flightcheck import REPO, drain, start_fly, wait_line
 from .spancheck import check_span
 
 TIMEOUT = 0.5  # s: the sim's lockstep_timeout in this flight
@@ -70,3 +72,8 @@ def test_a_stalled_autopilot_is_named_and_its_bag_is_still_whole(tmp_path: Path)
     assert answered <= states
     # every state is answered but those the sim advanced past (an answer may still come after its timeout)
     assert len(states - answered) <= missed, (len(states - answered), missed)
+    # and the bag tells it: lander analyse names the timeouts
+    analysed = subprocess.run([sys.executable, "-m", "lander_tools.cli", "analyse", str(bag)], capture_output=True,
+                              text=True, cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)), timeout=300)
+    assert analysed.returncode == 0, analysed.stderr
+    assert f"the sim advanced past {missed} states without the controller's answer" in analysed.stderr, analysed.stderr

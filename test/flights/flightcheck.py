@@ -65,14 +65,26 @@ def check_bag(bag_path: Path, result: FlightResult) -> Bag:
     return bag
 
 
+#: ``lander`` as a process of its own, run from this checkout (whatever is installed elsewhere).
+LANDER = [sys.executable, "-m", "lander_tools.cli"]
+LANDER_ENV = dict(os.environ, PYTHONPATH=str(REPO))
+
+
+def lander(*args: str, timeout: float = 240.0) -> subprocess.CompletedProcess:
+    """``lander ARGS`` run to its end (:data:`LANDER`), its output captured; no traceback allowed."""
+    res = subprocess.run([*LANDER, *args], check=False, capture_output=True, text=True, cwd=REPO, timeout=timeout,
+                         env=LANDER_ENV)
+    assert "Traceback" not in res.stdout + res.stderr, res.stdout + res.stderr
+    return res
+
+
 def start_fly(script: Path, bag: Path, *args: str) -> tuple[subprocess.Popen, queue.Queue[str | None]]:
     """``lander fly SCRIPT --record BAG --no-progress ARGS`` as a process of its own (signals reach it
     alone); its output lines arrive in the returned queue, then None at its end (:func:`wait_line`,
     :func:`drain`)."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "lander_tools.cli", "fly", str(script), "--record", str(bag), "--no-progress", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO,
-        env=dict(os.environ, PYTHONPATH=str(REPO)),
+        [*LANDER, "fly", str(script), "--record", str(bag), "--no-progress", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO, env=LANDER_ENV,
     )
     lines: queue.Queue[str | None] = queue.Queue()
 

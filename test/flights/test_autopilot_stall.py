@@ -12,12 +12,10 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-from .flightcheck import REPO, drain, start_fly, wait_line
+from .flightcheck import drain, lander, start_fly, wait_line
 from .spancheck import check_span
 
 TIMEOUT = 0.5  # s: the sim's lockstep_timeout in this flight
@@ -73,7 +71,6 @@ def test_a_stalled_autopilot_is_named_and_its_bag_is_still_whole(tmp_path: Path)
     # every state is answered but those the sim advanced past (an answer may still come after its timeout)
     assert len(states - answered) <= missed, (len(states - answered), missed)
     # and the bag tells it: lander analyse names the timeouts
-    analysed = subprocess.run([sys.executable, "-m", "lander_tools.cli", "analyse", str(bag)], capture_output=True,
-                              text=True, cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)), timeout=300)
+    analysed = lander("analyse", str(bag))
     assert analysed.returncode == 0, analysed.stderr
     assert f"the sim advanced past {missed} states without the controller's answer" in analysed.stderr, analysed.stderr

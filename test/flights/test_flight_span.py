@@ -14,8 +14,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -30,7 +28,7 @@ from lander_tools.launcher import (
 )
 from lander_tools.scripted import load_script, shipped_flights
 
-from .flightcheck import REPO
+from .flightcheck import REPO, lander
 from .spancheck import check_span
 
 #: Sim seconds of a matrix flight: a few control periods of every scene, kept short for CI.
@@ -114,11 +112,8 @@ def _period(plan: FlightPlan) -> float:
 
 
 def _lander(*args: str, timeout: float = 240.0) -> tuple[int, str]:
-    proc = subprocess.run([sys.executable, "-m", "lander_tools.cli", *args], check=False, capture_output=True, text=True,
-                          cwd=REPO, timeout=timeout, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    out = proc.stdout + proc.stderr
-    assert "Traceback" not in out, out
-    return proc.returncode, out
+    res = lander(*args, timeout=timeout)
+    return res.returncode, res.stdout + res.stderr
 
 
 @pytest.mark.parametrize("args,end_t", [

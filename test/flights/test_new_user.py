@@ -10,7 +10,6 @@
 """
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -20,17 +19,12 @@ import pytest
 
 from lander_tools.launcher import LaunchError, read_params_file
 
-from .flightcheck import REPO
+from .flightcheck import LANDER_ENV, lander
 from .spancheck import read_span
-
-ENV = dict(os.environ, PYTHONPATH=str(REPO))
 
 
 def _lander(*args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
-    res = subprocess.run([sys.executable, "-m", "lander_tools.cli", *args], check=False, capture_output=True, text=True,
-                         cwd=REPO, timeout=timeout, env=ENV)
-    assert "Traceback" not in res.stdout + res.stderr, res.stdout + res.stderr
-    return res
+    return lander(*args, timeout=timeout)
 
 
 # --- 1. every input is recorded, whatever QoS its publisher offers ------------------------------
@@ -50,7 +44,7 @@ rclpy.spin(node)
 
 def test_a_demand_published_with_default_qos_is_recorded(tmp_path: Path) -> None:
     user = subprocess.Popen([sys.executable, "-c", _PUBLISHER], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, env=ENV)
+                            text=True, env=LANDER_ENV)
     try:
         assert user.stdout is not None and user.stdout.readline().strip() == "publishing"
         res = _lander("fly", "hover-canted", "--speed", "1", "--duration", "2", "--record", str(tmp_path / "B"),

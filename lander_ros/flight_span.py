@@ -68,6 +68,11 @@ class FlightEnd:
             float(self.counts.get(topic, 0)) for topic in COUNTED_TOPICS
         ] + [float(self.lockstep_timeouts)]
 
+    def lockstep_warning(self) -> str | None:
+        """The sentence ``lander fly``'s summary and ``lander analyse`` both print when the sim advanced
+        past states without the autopilot's answer; None when it never did."""
+        return lockstep_warning(self.lockstep_timeouts)
+
     def detail(self) -> str:
         """One line a person reads: when, why and what was published."""
         counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in COUNTED_TOPICS)
@@ -87,6 +92,14 @@ class FlightEnd:
         timeouts = int(values[n]) if len(values) > n else 0  # recorded before the count was added: none known
         return cls(float(values[0]), END_REASONS[code], {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:n])},
                    timeouts)
+
+
+def lockstep_warning(timeouts: int) -> str | None:
+    """What ``timeouts`` lockstep timeouts in a flight mean, in one sentence; None for none."""
+    if not timeouts:
+        return None
+    return (f"the sim advanced past {timeouts} states without the autopilot's answer (lockstep timeouts): "
+            "not the deterministic flight (was the machine starved of CPU?)")
 
 
 def parse_end_on(text: str) -> tuple[str, ...]:

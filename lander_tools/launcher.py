@@ -1258,6 +1258,8 @@ def _figure(value: float, fmt: str, unit: str) -> str:
 def summary(result: FlightResult) -> str:
     """The flight summary ``lander fly`` prints: every figure named, with its unit; "n/a" where a
     figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot)."""
+    from lander_ros.flight_span import lockstep_warning
+
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
     lines = [
         f"flight ended: {result.outcome} at sim time t = {result.sim_time:.2f} s "
@@ -1288,9 +1290,9 @@ def summary(result: FlightResult) -> str:
         lines.append(f"  touchdown at t = {_figure(td.get('t_impact', math.nan), '.3f', 's')}: " + ", ".join(figures))
     elif f:
         lines.append("  touchdown: n/a (none in this flight)")
-    if result.lockstep_timeouts:
-        lines.append(f"  lockstep: the sim advanced past {result.lockstep_timeouts} states without the autopilot's "
-                     "answer (lockstep_timeout): not the deterministic flight (was the machine starved of CPU?)")
+    warning = lockstep_warning(result.lockstep_timeouts)
+    if warning:
+        lines.append(f"  lockstep: {warning}")
     if result.bag is not None:
         lines.append(f"  bag: {result.bag} ({sum(result.counts.values())} messages; {result.bag_check})")
     return "\n".join(lines)

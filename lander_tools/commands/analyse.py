@@ -130,10 +130,9 @@ def _print_span(path: Path, bag) -> None:
         if int(m.kind) != EV_FLIGHT_ENDED:
             continue
         try:
-            missed = FlightEnd.from_values(list(m.values)).lockstep_timeouts
+            warning = FlightEnd.from_values(list(m.values)).lockstep_warning()
         except ValueError as exc:
             print(f"lander analyse: warning: {path}: unreadable FLIGHT_ENDED: {exc}", file=sys.stderr)
             continue
-        if missed:
-            print(f"lander analyse: warning: {path}: the sim advanced past {missed} states without the "
-                  "controller's answer (lockstep timeouts): not the deterministic flight", file=sys.stderr)
+        if warning:
+            print(f"lander analyse: warning: {path}: {warning}", file=sys.stderr)

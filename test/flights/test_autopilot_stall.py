@@ -73,4 +73,4 @@ def test_a_stalled_autopilot_is_named_and_its_bag_is_still_whole(tmp_path: Path)
     # and the bag tells it: lander analyse names the timeouts
     analysed = lander("analyse", str(bag))
     assert analysed.returncode == 0, analysed.stderr
-    assert f"the sim advanced past {missed} states without the controller's answer" in analysed.stderr, analysed.stderr
+    assert f"the sim advanced past {missed} states without the autopilot's answer" in analysed.stderr, analysed.stderr

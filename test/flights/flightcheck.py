@@ -67,13 +67,18 @@ def check_bag(bag_path: Path, result: FlightResult) -> Bag:
 
 #: ``lander`` as a process of its own, run from this checkout (whatever is installed elsewhere).
 LANDER = [sys.executable, "-m", "lander_tools.cli"]
-LANDER_ENV = dict(os.environ, PYTHONPATH=str(REPO))
+
+
+def lander_env() -> dict[str, str]:
+    """The environment a ``lander`` process runs in: this checkout on its path, and the test module's
+    own ROS_DOMAIN_ID (read now: conftest's module fixture sets it after this module is imported)."""
+    return dict(os.environ, PYTHONPATH=str(REPO))
 
 
 def lander(*args: str, timeout: float = 240.0) -> subprocess.CompletedProcess:
     """``lander ARGS`` run to its end (:data:`LANDER`), its output captured; no traceback allowed."""
     res = subprocess.run([*LANDER, *args], check=False, capture_output=True, text=True, cwd=REPO, timeout=timeout,
-                         env=LANDER_ENV)
+                         env=lander_env())
     assert "Traceback" not in res.stdout + res.stderr, res.stdout + res.stderr
     return res
 
@@ -84,7 +89,7 @@ def start_fly(script: Path, bag: Path, *args: str) -> tuple[subprocess.Popen, qu
     :func:`drain`)."""
     proc = subprocess.Popen(
         [*LANDER, "fly", str(script), "--record", str(bag), "--no-progress", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO, env=LANDER_ENV,
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO, env=lander_env(),
     )
     lines: queue.Queue[str | None] = queue.Queue()
 

@@ -19,7 +19,7 @@ import pytest
 
 from lander_tools.launcher import LaunchError, read_params_file
 
-from .flightcheck import LANDER_ENV, lander
+from .flightcheck import lander, lander_env
 from .spancheck import read_span
 
 
@@ -44,7 +44,7 @@ rclpy.spin(node)
 
 def test_a_demand_published_with_default_qos_is_recorded(tmp_path: Path) -> None:
     user = subprocess.Popen([sys.executable, "-c", _PUBLISHER], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, env=LANDER_ENV)
+                            text=True, env=lander_env())
     try:
         assert user.stdout is not None and user.stdout.readline().strip() == "publishing"
         res = _lander("fly", "hover-canted", "--speed", "1", "--duration", "2", "--record", str(tmp_path / "B"),

@@ -9,14 +9,13 @@ Real parts only: the sim and autopilot node processes, the command run as a user
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 import rosutil
 
-from .flightcheck import REPO
+from .flightcheck import LANDER, REPO, lander, lander_env
 from .spancheck import check_span
 
 
@@ -28,8 +27,7 @@ def _node(module: str, **params: object) -> rosutil.ChildProcess:
 
 
 def _record(*argv: str, timeout: float = 90.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "lander_tools.cli", "record", *argv], cwd=REPO,
-                          capture_output=True, text=True, timeout=timeout)
+    return lander("record", *argv, timeout=timeout)
 
 
 def test_sim_alone_running_at_speed_0_is_recorded_from_t0_to_the_end(tmp_path: Path) -> None:
@@ -96,9 +94,8 @@ def test_a_paused_flight_stays_paused_until_resumed_and_is_still_whole(tmp_path:
         link.subscribe("/lander/state", "lander_interfaces/msg/LanderState", lambda m: states.append(m.sequence))
         rosutil.wait_for(lambda: len(states) > 3, 30.0, what="the running flight's states")
         assert link.sim_service("pause").ok
-        rec = subprocess.Popen([sys.executable, "-m", "lander_tools.cli", "record", "-o", str(bag), "--whole-flight",
-                                "--duration", "3", "--wait", "30"], cwd=REPO, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+        rec = subprocess.Popen([*LANDER, "record", "-o", str(bag), "--whole-flight", "--duration", "3", "--wait", "30"],
+                               cwd=REPO, env=lander_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         assert rec.stdout is not None
         first = rec.stdout.readline()  # the protocol's one line before recording: waits for match and reset
         assert "from the flight's reset (t = 0, paused)" in first, first + sim.output()

@@ -12,7 +12,7 @@ would start braking under the open chute) this law
    the chute, :mod:`.calibration`) and
 2. flies it with :class:`lander_autopilot.guidance.descent_mpc.DescentMpc`: each control period a
    second-order-cone programme (cvxpy + Clarabel) re-plans the minimum-fuel descent from the measured
-   state to rest at the demand by the end time of the minimum-fuel reference
+   state to rest ``target_above`` (1 m) over the demand by the end time of the minimum-fuel reference
    (:func:`lander_autopilot.guidance.fuel_optimal.solve`, lossless convexification with the drag
    re-linearised), within the throttle limit, the tilt limit and a glide slope.
 
@@ -112,7 +112,13 @@ class DeorbitMpcController(DeorbitController):
     late horizontal braking was flown ~1 s behind and the hover began with 0.5-1 m/s of drift);
     ``brake_fraction`` sets the handover: where the descent law's braking curve at that fraction of
     the net thrust is reached (0.5: earlier than the scheduled law's 0.95, so that the plan at
-    99 % of the thrust still has room); the rest are :class:`.deorbit.DeorbitController`'s.
+    99 % of the thrust still has room); ``target_above`` [m] (1.0, in ``[0, hover_band)``): the QP
+    plans to rest this far over the demand, as the scheduled law's limb ends ``stop_above`` (1 m)
+    over it. A plan that falls behind (the attitude law's share of the collective learnt only as
+    the braking binds) stops short of its target; planned to the demand itself, three dispersed
+    flights of 600 stopped 2.1-2.8 m under it, outside the 2 m band, and the hover law's climb back
+    cost 0.13-0.15 of the optimum (docs/deorbit.md, "The MPC's target (stop 34)"); the rest are
+    :class:`.deorbit.DeorbitController`'s.
     """
 
     name: ClassVar[str] = "deorbit-mpc"
@@ -133,7 +139,7 @@ class DeorbitMpcController(DeorbitController):
 
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
                  glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.94,
-                 attitude_lag: float | None = None, plan_reserve: float = 0.04,
+                 attitude_lag: float | None = None, plan_reserve: float = 0.04, target_above: float = 1.0,
                  slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
@@ -155,15 +161,18 @@ class DeorbitMpcController(DeorbitController):
         if not (0.0 <= float(glide_slope) < math.pi / 2):
             raise ControllerError(f"glide_slope: expected a value in [0, pi/2) rad, got {glide_slope!r}")
         self.glide_slope = float(glide_slope)
+        self.target_above = non_negative_param("target_above", target_above)
+        if self.target_above >= self.hover_band:
+            raise ControllerError(f"target_above: expected less than hover_band ({self.hover_band} m), got {target_above!r}")
         self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
                                     reference_steps=reference_steps,
                                     reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust),
                                     attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag),
                                     plan_reserve=self._share("plan_reserve", plan_reserve))
         self.axial = vertical_thrust(vehicle)
-        # The handover is where the descent law's braking curve (at brake_fraction) is reached; the
-        # QP plans to the demand itself, so that curve ends there too, not stop_above over it (the
-        # scheduled law's margin for its own braking; it would move the MPC's handover).
+        # The handover is where the descent law's braking curve (at brake_fraction) is reached; that
+        # curve ends at the demand, not stop_above over it (the scheduled law's margin for its own
+        # braking; it would move the MPC's handover). The QP's own margin is target_above.
         self.descent.stop_above = 0.0
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
@@ -256,7 +265,8 @@ class DeorbitMpcController(DeorbitController):
             # the fit over the coast under the chute (DeorbitController._fit_air): the wind's vertical
             # part too, which a scale learnt at the canopy's terminal speed folds in wrongly below it
             wind_W, drag_scale = self.air.wind_W, self.air.scale
-        problem, L = handover_problem(self.vehicle, state.r_W, state.v_W, state.fuel, demand.altitude,
+        target = demand.altitude + self.target_above  # rest over the demand: a plan that falls behind stops in the band
+        problem, L = handover_problem(self.vehicle, state.r_W, state.v_W, state.fuel, target,
                                       max_tilt=self.max_tilt, chute_open=self._chute_open, wind_W=wind_W,
                                       drag_scale=drag_scale, thrust_scale=self.thrust_calibration.scale)
         limits = DescentLimits(rho_max=problem.limits.rho_max, alpha=problem.limits.alpha,

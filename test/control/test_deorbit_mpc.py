@@ -116,6 +116,9 @@ def test_bad_mpc_parameters_name_the_key():
     for bad in (-0.5, float("nan"), "slow"):
         with pytest.raises(ControllerError, match="attitude_lag"):
             make_controller("deorbit-mpc", sc.vehicle, attitude_lag=bad)
+    for bad in (-1.0, 2.0, float("nan"), "high"):  # 2.0: the hover band's edge, the plan would end outside it
+        with pytest.raises(ControllerError, match="target_above"):
+            make_controller("deorbit-mpc", sc.vehicle, target_above=bad)
     with pytest.raises(ControllerError, match="unknown parameter"):
         make_controller("deorbit-mpc", sc.vehicle, horizon=3)
     with pytest.raises(ControllerError, match="chute_margin"):

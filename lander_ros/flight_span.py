@@ -68,11 +68,6 @@ class FlightEnd:
             float(self.counts.get(topic, 0)) for topic in COUNTED_TOPICS
         ] + [float(self.lockstep_timeouts)]
 
-    def lockstep_warning(self) -> str | None:
-        """The sentence ``lander fly``'s summary and ``lander analyse`` both print when the sim advanced
-        past states without the autopilot's answer; None when it never did."""
-        return lockstep_warning(self.lockstep_timeouts)
-
     def detail(self) -> str:
         """One line a person reads: when, why and what was published."""
         counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in COUNTED_TOPICS)
@@ -95,7 +90,8 @@ class FlightEnd:
 
 
 def lockstep_warning(timeouts: int) -> str | None:
-    """What ``timeouts`` lockstep timeouts in a flight mean, in one sentence; None for none."""
+    """What ``timeouts`` lockstep timeouts in a flight mean, in one sentence (``lander fly``'s summary and
+    ``lander analyse`` both print it; ``FlightEnd.lockstep_timeouts``); None for none."""
     if not timeouts:
         return None
     return (f"the sim advanced past {timeouts} states without the autopilot's answer (lockstep timeouts): "

@@ -123,14 +123,14 @@ def _print_span(path: Path, bag) -> None:
     print(f"lander analyse: {flag}{path}: states {span.describe()}", file=sys.stderr)
     # A lockstep flight whose sim advanced without some answers is not the deterministic one: its
     # FLIGHT_ENDED says how many (lander_ros.flight_span); bags recorded before the count read 0.
-    from lander_ros.flight_span import FlightEnd
+    from lander_ros.flight_span import FlightEnd, lockstep_warning
     from lander_tools.analysis import EV_FLIGHT_ENDED
 
     for m in bag.messages("/lander/events") if "/lander/events" in bag.topics else []:
         if int(m.kind) != EV_FLIGHT_ENDED:
             continue
         try:
-            warning = FlightEnd.from_values(list(m.values)).lockstep_warning()
+            warning = lockstep_warning(FlightEnd.from_values(list(m.values)).lockstep_timeouts)
         except ValueError as exc:
             print(f"lander analyse: warning: {path}: unreadable FLIGHT_ENDED: {exc}", file=sys.stderr)
             continue

@@ -15,9 +15,8 @@ def test_the_values_carry_the_counts_and_the_lockstep_timeouts_and_decode_back()
     assert "3 lockstep timeouts" in end.detail()
     assert "lockstep" not in FlightEnd(1.0, "time-limit", counts).detail()  # none: not mentioned
     # the one sentence lander fly's summary and lander analyse both print
-    assert end.lockstep_warning() == lockstep_warning(3)
-    assert "the sim advanced past 3 states without the autopilot's answer" in end.lockstep_warning()
-    assert FlightEnd(1.0, "time-limit", counts).lockstep_warning() is None
+    assert "the sim advanced past 3 states without the autopilot's answer" in lockstep_warning(end.lockstep_timeouts)
+    assert lockstep_warning(FlightEnd(1.0, "time-limit", counts).lockstep_timeouts) is None
 
 
 def test_an_event_recorded_before_the_timeout_count_decodes_with_none() -> None:

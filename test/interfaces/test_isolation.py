@@ -3,19 +3,30 @@
 import os
 import re
 import signal
+import time
 import uuid
 from pathlib import Path
 
 import rosutil
 
 HERE = Path(__file__).resolve().parent
-SHM = Path("/dev/shm")
 SEGMENT = re.compile(r"fastdds_[0-9a-f]{16}$")  # a participant's own segment (ports are shared)
 START_TIMEOUT_S = 30.0  # a Python child importing rclpy on 2 busy cores; the wait ends early
+MIN_AGE_S = 2.0  # the clean-up's default: younger files may be another run's, its lock not yet taken
 
 
-def _segments() -> set[Path]:
-    return {p for p in SHM.glob("fastdds_*") if SEGMENT.match(p.name)}
+def _own_segments(pid: int) -> set[Path]:
+    """The participant segments process ``pid`` has mapped: its own, not those of other runs on
+    the machine (the other xdist worker, another engineer's suite) created meanwhile."""
+    try:
+        maps = Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return set()
+    return {Path(m) for m in re.findall(r"(/dev/shm/fastdds_\S+)", maps) if SEGMENT.match(Path(m).name)}
+
+
+def _age(f: Path) -> float:
+    return time.time() - f.stat().st_mtime
 
 
 def test_run_has_private_domain_and_localhost_discovery():
@@ -37,20 +48,24 @@ def test_domain_claims_are_distinct_while_held():
 
 
 def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):
-    before = _segments()
     prefix = f"/iso_{uuid.uuid4().hex[:8]}"
     victim = spawn_python([str(HERE / "sample_node.py"), prefix], name="victim")
-    rosutil.wait_for(lambda: _segments() - before, START_TIMEOUT_S, what="victim's shm segment")
-    victim_files = _segments() - before
+    rosutil.wait_for(lambda: _own_segments(victim.proc.pid), START_TIMEOUT_S, what="victim's shm segment")
+    victim_files = _own_segments(victim.proc.pid)
     victim.proc.send_signal(signal.SIGKILL)  # no chance to clean up: leaves its files behind
     victim.proc.wait()
     assert all(f.exists() for f in victim_files)
 
     survivor = spawn_python([str(HERE / "sample_node.py"), prefix + "_b"], name="survivor")
-    rosutil.wait_for(lambda: _segments() - before - victim_files, START_TIMEOUT_S, what="survivor's shm segment")
-    survivor_files = _segments() - before - victim_files
+    rosutil.wait_for(lambda: _own_segments(survivor.proc.pid), START_TIMEOUT_S, what="survivor's shm segment")
+    survivor_files = _own_segments(survivor.proc.pid)
+    assert not survivor_files & victim_files
 
-    removed = rosutil.clean_stale_fastdds_shm(min_age_s=0.0)
+    # The clean-up's age leaves alone files other runs on the machine are creating now; both
+    # processes' files are let reach it, so the survivor's are kept for being held, not young.
+    mine = victim_files | survivor_files
+    rosutil.wait_for(lambda: min(_age(f) for f in mine) >= MIN_AGE_S, 10.0, what="the segments' age")
+    removed = rosutil.clean_stale_fastdds_shm(min_age_s=MIN_AGE_S)
     assert victim_files <= set(removed)
     assert not any(f.exists() for f in victim_files)
     assert all(f.exists() for f in survivor_files), "a live process's shm segment was removed"

@@ -18,7 +18,11 @@ Metric definitions (all SI):
   value and each change, timed at the state the autopilot first answered with it), so the
   scene's demand counts too; bags without that field fall back to ``/lander/demand_altitude``.
 * Step response to the demand altitude ``h_d`` (reference 2, section 4.1): for the
-  last step of the demand timeline (or the first demand, if it never changed),
+  last step of the demand timeline to a hover (or the first demand, if it never changed) over
+  its segment, which ends at the next change or at the touchdown. A demand of 0 m or less asks
+  the autopilot to land (the landing and de-orbit laws), not to hover: a flight that lands on
+  demand is measured on the hover before it, and a landing-only flight has no step response
+  (its figures are the touchdown's). In the step's segment,
   ``settling_time`` is the time after the step from which ``|h - h_d|`` stays inside
   ``band = max(2 % of the step, band_min)`` (:func:`lander_tools.sweep.metrics.settling_time`,
   the sweeps' definition; ``None`` where it never settles); ``overshoot`` is the largest excursion
@@ -250,6 +254,17 @@ def _step_response(
     return settling, overshoot, sse, float(np.max(np.abs(settled[-n_tail:])))
 
 
+def _hover_step(demand: np.ndarray, demand_t: np.ndarray, t_down: float) -> int | None:
+    """Index in the demand timeline of the step whose response is measured (module docstring):
+    the last change to a hover demand (> 0 m) before the touchdown, else the first demand if it
+    is a hover; ``None`` if the flight never had one."""
+    hover = (demand > 0.0) & (demand_t < t_down)
+    if not hover.any():
+        return None
+    changes = np.nonzero(hover[1:] & (np.diff(demand) != 0))[0] + 1
+    return int(changes[-1]) if len(changes) else int(np.argmax(hover))
+
+
 def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -> Metrics:
     """Compute :class:`Metrics` of a flight (definitions in the module docstring).
 
@@ -259,13 +274,15 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     t = flight.t
     n = len(t)
     outcome = PHASE_NAMES.get(int(flight.phase[-1]), "flying") if n else "flying"
-    touchdown = None
+    touchdown: float | None = None
+    touchdown_time: float | None = None  # [s] of sim time
     td: dict[str, Any] = {}
     for _, kind, _, values in flight.events:
         if kind in (EV_LANDED, EV_HARD_LANDING, EV_CRASHED):
             outcome = "crashed" if kind == EV_CRASHED else "landed"
             # values: t_impact [s], descent_rate [m/s], ground_speed [m/s], tilt_deg, fuel_left [kg]
             touchdown = math.hypot(values[1], values[2]) if len(values) >= 3 else None
+            touchdown_time = float(values[0]) if len(values) else None
             td = dict(zip(("touchdown_descent_rate", "touchdown_ground_speed", "touchdown_tilt", "touchdown_fuel_left"),
                           (float(v) for v in values[1:5])))
             td["touchdown_class"] = {EV_LANDED: "safe", EV_HARD_LANDING: "hard"}.get(kind, "crash")
@@ -273,17 +290,21 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     if touchdown is None and outcome != "flying":
         k = int(np.argmax(flight.phase != 0))
         touchdown = float(np.linalg.norm(flight.v_W[max(k - 1, 0)]))
+        touchdown_time = float(t[k])
 
-    # Step response: the last change of the demand, else the first demand heard.
+    # Step response: the last step to a hover, over its segment (module docstring).
     settling = overshoot = sse = hover_max = step = hd = None
-    if len(flight.demand):
-        changes = np.nonzero(np.abs(np.diff(flight.demand)) > 0)[0]
-        k = int(changes[-1] + 1) if len(changes) else 0
+    t_down = touchdown_time if touchdown_time is not None else math.inf
+    k = _hover_step(flight.demand, flight.demand_t, t_down)
+    if k is not None:
         t0, hd = float(flight.demand_t[k]), float(flight.demand[k])
+        t1 = min(float(flight.demand_t[k + 1]) if k + 1 < len(flight.demand) else math.inf, t_down)
         # The step is measured from where the lander actually was when the demand changed.
         h0 = float(np.interp(t0, t, flight.altitude))
         step = hd - h0
-        settling, overshoot, sse, hover_max = _step_response(t, flight.altitude, t0, h0, hd, band_min, tail_fraction)
+        seg = t <= t1
+        settling, overshoot, sse, hover_max = _step_response(
+            t[seg], flight.altitude[seg], t0, h0, hd, band_min, tail_fraction)
 
     # Saturation time.
     if len(flight.status_t) > 1:

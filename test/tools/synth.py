@@ -26,10 +26,12 @@ def write_flight_bag(
     storage: str = "mcap",
     meta: dict[str, str] | None = None,
     status_demand: np.ndarray | None = None,
+    phase: np.ndarray | None = None,
 ) -> None:
     """A bag with /clock, /lander/state (upright lander on the -y axis, as scene 'hover') and
     /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised).
-    With ``status_demand`` (one value per state) also /autopilot/status carrying that demand in force."""
+    With ``status_demand`` (one value per state) also /autopilot/status carrying that demand in force;
+    ``phase`` (one per state, default 0: flying) is the state's phase field (1 landed, 2 crashed)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = lander_typestore()
@@ -76,7 +78,7 @@ def write_flight_bag(
                 mass=100.0 + float(fuel[i]),
                 fuel_mass=float(fuel[i]),
                 throttles=np.asarray(throttles[i], dtype=float),
-                phase=0,
+                phase=0 if phase is None else int(phase[i]),
                 parachute_deployed=False,
                 stabiliser_on=False,
             )

@@ -85,6 +85,34 @@ def test_steady_state_is_taken_after_settling_not_over_a_long_approach(tmp_path:
     assert m.hover_error_max == pytest.approx(0.3, abs=1e-9)
 
 
+def test_a_landing_on_demand_is_measured_on_the_hover_before_it_and_a_landing_alone_has_no_step(tmp_path: Path) -> None:
+    # 50 s of hover 0.3 m under the 500 m demand, then the demand 0 m (land) and a descent at
+    # 16.65 m/s to rest on the ground (the lander's centre 0.5 m over it) from 80 s on.
+    t = np.arange(0, 90, DT)
+    h = np.where(t < 50.0, 499.7, np.maximum(499.7 - 16.64 * (t - 50.0), 0.5))
+    landed = np.where(h <= 0.5, 1, 0)
+    t_down = t[np.argmax(landed)]
+    write_flight_bag(tmp_path / "b", t, h, np.gradient(h, t), demand=[(0.0, 500.0), (50.0, 0.0)], phase=landed)
+    m = metrics(Flight.from_bag(read_bag(tmp_path / "b")))
+    assert m.outcome == "landed" and m.final_altitude == 0.5
+    # the hover's step (the first demand) over its segment, to the landing demand: not the
+    # landing's "step" to 0 m, whose tail is the lander resting 0.5 m over it
+    assert m.demand_altitude == 500.0 and m.step_size == pytest.approx(0.3, abs=1e-9)
+    assert m.steady_state_error == pytest.approx(-0.3, abs=1e-9) and m.hover_error_max == pytest.approx(0.3, abs=1e-9)
+    # A landing from the start (the landing scenes' demand 0 m) has no step response at all.
+    write_flight_bag(tmp_path / "l", t, h, np.gradient(h, t), demand=[(0.0, 0.0)], phase=landed)
+    m = metrics(Flight.from_bag(read_bag(tmp_path / "l")))
+    assert m.outcome == "landed"
+    assert (m.demand_altitude, m.step_size, m.settling_time, m.overshoot_percent, m.steady_state_error,
+            m.hover_error_max) == (None,) * 6
+    # A hover that ends on the ground without a landing demand is measured to the touchdown: the
+    # state after it (at rest 499.2 m under the demand) is not the step's.
+    write_flight_bag(tmp_path / "c", t, h, np.gradient(h, t), demand=[(0.0, 500.0)], phase=landed)
+    m = metrics(Flight.from_bag(read_bag(tmp_path / "c")))
+    expect = h[(t <= t_down)] - 500.0
+    assert m.demand_altitude == 500.0 and m.hover_error_max == pytest.approx(np.max(np.abs(expect[-int(len(expect) * 0.2):])), abs=1e-9)
+
+
 def test_angular_momentum_drift_is_zero_for_a_true_free_spin_and_large_for_a_wrong_one(tmp_path: Path) -> None:
     # Spin about the body x axis (a principal axis): omega constant, q(t) = q_x(0.8 t) exactly,
     # so L_W = R^T I omega is constant (eq 2: omega x I omega = 0) up to rounding.

@@ -8,6 +8,10 @@ process still in its domain is given 5 s to exit, then killed, and the module's 
 naming it (a leaked node is a defect). At session end Fast DDS shared-memory files of dead
 processes are removed.
 
+The suite runs in pytest-xdist workers (setup.cfg: ``-n auto --dist loadfile``): each worker is a
+run of its own in the sense above (its own domain ids, held by lock files), and a test file runs
+whole in one worker.
+
 Fixtures for other tests:
   ros_context   a fresh rclpy Context, initialised for the test and shut down after it
   ros_node      (node, executor) in that context; ``ros_node.wait_for(pred, timeout, what)``
@@ -42,6 +46,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "slow: long test, skipped unless --runslow is given")
+
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto``: one worker per core, at most 4 (each flight test runs several processes itself)."""
+    return max(1, min(4, os.cpu_count() or 1))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pytest
@@ -217,18 +217,40 @@ def _hover_to_rest(case_index: int, **params: object) -> tuple[float, float]:
 
 
 @pytest.mark.slow  # two flights, ~20 s
-def test_hover_attitude_fast_enough_to_take_the_last_drift_out_under_the_canopy():
-    """Case 140 (6.2 m/s of wind from the north): the braking ends with ~0.3 m/s of drift and the
+def test_hover_attitude_fast_enough_to_take_the_last_drift_out_under_the_canopy(monkeypatch):
+    """Case 140 (6.2 m/s of wind from the north), braked as before stop 35 (the lag term counting
+    the thrust asked for at the mixer's ceiling): the braking ends with ~0.3 m/s of drift and the
     thrust axis short of the tilt the drag at rest needs (the canopy's torque). With the ground-speed
     law's attitude poles (-2) the hover flies the axis there slowly, on hover thrust; at the hover's
     own poles (-4) it is at the band's speed on about half the fuel (1.07 -> 0.58 kg), from the same
     state (the braking is the same flight). Stop 30 measured this on case 164 (1.46 -> 0.74 kg),
-    whose braking now ends under the band's speed (stop 31's horizontal loop)."""
+    whose braking now ends under the band's speed (stop 31's horizontal loop), as case 140's does
+    since stop 35 (the next test)."""
+    monkeypatch.setattr(DescentToAltitude, "axial_at_ceiling", lambda self, m: None)
     fuel, drift = _hover_to_rest(140)
     fuel_slow, drift_slow = _hover_to_rest(140, hover_attitude_poles=[-2.0] * 6)
     print(f"hover fuel to the band at rest: {fuel_slow:.3f} kg (poles -2) -> {fuel:.3f} kg (poles -4); drift {drift:.3f} m/s")
     assert drift == drift_slow > load_spec(SPEC).end.hover_speed  # the same braking, ending over the band's speed
     assert fuel < 0.8 * fuel_slow
+
+
+@pytest.mark.slow  # two flights and their optimum, ~25 s
+def test_braking_at_the_mixers_ceiling_counts_the_thrust_it_gives_not_the_one_asked(monkeypatch):
+    """Case 140 (6.2 m/s of wind from the north): the braking rides the mixer's ceiling (the
+    attitude law's share on top of the collective) and the thrust flown is 0.2-0.3 under the one
+    asked for. The horizontal loop's lag term counted that missing thrust's horizontal part as
+    speed already being taken out, asked for too little, and the hover began with 0.29 m/s of
+    ground speed, over the band's 0.2: 1.080 x the optimum. Counting at the ceiling the thrust the
+    mixer gave (``DescentToAltitude.axial_at_ceiling``), the drift is out by the hover: 1.032 x
+    (docs/deorbit.md, "The thrust the lag term counts (stop 35)")."""
+    speed = load_spec(SPEC).end.hover_speed
+    end = _powered_end(140, 0)
+    monkeypatch.setattr(DescentToAltitude, "axial_at_ceiling", lambda self, m: None)
+    before = _powered_end(140, 0)
+    print(f"ground speed as the hover begins {before.drift:.3f} -> {end.drift:.3f} m/s; "
+          f"fuel to the band at rest {before.ratio:.4f} -> {end.ratio:.4f} x the optimum")
+    assert end.drift < speed < before.drift
+    assert end.ratio < 1.05 < before.ratio
 
 
 @pytest.mark.slow  # one flight and one optimum, ~15 s
@@ -284,29 +306,39 @@ def test_braking_takes_the_drift_out_before_its_shorter_end(monkeypatch):
     assert drift < speed < drift_before
 
 
-def _mpc_end(case_index: int, spec_path: Path = SPEC, **params: object) -> tuple[float, float, float]:
-    """MPC (``params`` over the sweep's), core-only: (the fastest climb in the powered descent after
-    the fall's end [m/s], the fuel from the powered descent's start to the first instant within the
-    sweep's band at its speed over the optimum, the altitude error where the fall first stopped [m])."""
+class PoweredEnd(NamedTuple):
+    """How a core-only flight's powered descent ended (:func:`_powered_end`)."""
+
+    climb_max: float  # [m/s] the fastest climb in the powered descent after the fall's end
+    ratio: float  # fuel from the powered descent's start to the first instant within the sweep's band at its speed, over the optimum
+    fall_end: float  # [m] the altitude error where the fall first stopped
+    drift: float  # [m/s] the ground speed as the `hover` phase began
+
+
+def _powered_end(case_index: int, controller_index: int, spec_path: Path = SPEC, **params: object) -> PoweredEnd:
+    """The sweep's case flown core-only by its controller ``controller_index`` (0 scheduled, 1 MPC;
+    ``params`` over the sweep's) to the band at rest: how its powered descent ended."""
     from lander_tools.sweep.flight import _chute_open, powered_optimum
 
     spec = load_spec(spec_path)
     handover = None
-    stopped, climb_max, fall_end = False, 0.0, math.nan
-    for s, ctrl, sim in _flown(case_index, 1, spec_path, **params):
+    stopped, climb_max, fall_end, drift = False, 0.0, math.nan, math.nan
+    for s, ctrl, sim in _flown(case_index, controller_index, spec_path, **params):
         r = float(np.linalg.norm(s.r_W))
         error, climb = r - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / r
         if handover is None and ctrl.phase is Phase.POWERED:
             handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), _chute_open(sim))
         if handover is not None and math.isnan(fall_end) and climb >= 0.0:
             fall_end = error
+        if math.isnan(drift) and ctrl.phase is Phase.HOVER:
+            drift = float(np.linalg.norm(s.v_W - climb * s.r_W / r))
         stopped = stopped or (handover is not None and abs(error) < spec.end.hover_band and climb >= 0.0)
         if stopped and ctrl.phase is Phase.POWERED:
             climb_max = max(climb_max, climb)
         at_rest = float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed
         if handover is not None and abs(error) <= spec.end.hover_band and at_rest:
             ratio = (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
-            return climb_max, ratio, fall_end
+            return PoweredEnd(climb_max, ratio, fall_end, drift)
     raise AssertionError("never within the band at its speed")
 
 
@@ -322,9 +354,9 @@ def test_mpc_last_braking_period_stops_the_fall_not_into_a_climb(monkeypatch):
     from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
 
     speed = load_spec(SPEC_0).end.hover_speed
-    climb, ratio, _ = _mpc_end(96, SPEC_0, target_above=0.0)
+    climb, ratio, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0)
     monkeypatch.setattr(DeorbitMpcController, "_stop_within_period", lambda self, T_L, *args: T_L)
-    climb_before, ratio_before, _ = _mpc_end(96, SPEC_0, target_above=0.0)
+    climb_before, ratio_before, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0)
     print(f"fastest climb after the fall's end {climb_before:.3f} -> {climb:.3f} m/s; "
           f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
     assert climb < speed < climb_before
@@ -339,8 +371,8 @@ def test_mpc_plans_to_rest_over_the_demand_so_a_plan_that_falls_behind_stops_in_
     cost 0.15 of the optimum (1.199 x). Planned to rest ``target_above`` (1 m) over the demand, the
     same shortfall stops in the band (1.051 x; docs/deorbit.md, "The MPC's target (stop 34)")."""
     band = load_spec(SPEC_0).end.hover_band
-    _, ratio_before, stop_before = _mpc_end(78, SPEC_0, target_above=0.0)
-    _, ratio, stop = _mpc_end(78, SPEC_0)
+    _, ratio_before, stop_before, _ = _powered_end(78, 1, SPEC_0, target_above=0.0)
+    _, ratio, stop, _ = _powered_end(78, 1, SPEC_0)
     print(f"the fall stopped at {stop_before:+.2f} -> {stop:+.2f} m from the demand; "
           f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
     assert stop_before < -band < stop < 0.0  # short of the target either way: the plan fell behind

@@ -85,6 +85,22 @@ def test_steady_state_is_taken_after_settling_not_over_a_long_approach(tmp_path:
     assert m.hover_error_max == pytest.approx(0.3, abs=1e-9)
 
 
+def test_steady_state_is_the_hover_when_the_step_band_is_wider_than_the_braking(tmp_path: Path) -> None:
+    # A fall of 20 km at 100 m/s into the 2 % band (400 m), a 40 s braking through it at 10 m/s, a
+    # 5 s hover 0.3 m under the demand, then a landing demand. The band's settled part is 45 s and
+    # its last 20 % (9 s) would hold 4 s of the braking (errors to 40 m); settled within band_min
+    # (0.5 m), the tail is the hover's.
+    t = np.arange(0, 260, DT)
+    h = np.where(t < 196.0, 20_500.0 - 100.0 * t, np.where(t < 236.0, 900.0 - 10.0 * (t - 196.0), 499.7))
+    h = np.where(t < 241.0, h, np.maximum(499.7 - 10.0 * (t - 241.0), 0.5))
+    write_flight_bag(tmp_path / "b", t, h, np.gradient(h, t), demand=[(0.0, 500.0), (241.0, 0.0)],
+                     phase=np.where(h <= 0.5, 1, 0))
+    m = metrics(Flight.from_bag(read_bag(tmp_path / "b")))
+    assert m.settling_time == pytest.approx(196.0, abs=DT + 1e-9)  # the 2 % band, as the sweeps define it
+    assert m.steady_state_error == pytest.approx(-0.3, abs=1e-9)
+    assert m.hover_error_max == pytest.approx(0.3, abs=1e-9)
+
+
 def test_a_landing_on_demand_is_measured_on_the_hover_before_it_and_a_landing_alone_has_no_step(tmp_path: Path) -> None:
     # 50 s of hover 0.3 m under the 500 m demand, then the demand 0 m (land) and a descent at
     # 16.65 m/s to rest on the ground (the lander's centre 0.5 m over it) from 80 s on.

@@ -8,7 +8,7 @@ process still in its domain is given 5 s to exit, then killed, and the module's 
 naming it (a leaked node is a defect). At session end Fast DDS shared-memory files of dead
 processes are removed.
 
-The suite runs in pytest-xdist workers (setup.cfg: ``-n auto --dist loadfile``): each worker is a
+``./dev test`` runs the suite in pytest-xdist workers (``-n auto --dist loadfile``): each worker is a
 run of its own in the sense above (its own domain ids, held by lock files), and a test file runs
 whole in one worker.
 

@@ -1,5 +1,6 @@
 """Test isolation itself: private domain, localhost discovery, clean-up of dead processes' shm."""
 
+import math
 import os
 import re
 import signal
@@ -26,7 +27,11 @@ def _own_segments(pid: int) -> set[Path]:
 
 
 def _age(f: Path) -> float:
-    return time.time() - f.stat().st_mtime
+    """Seconds since ``f`` was written; infinite once it is gone (another run's clean-up took it)."""
+    try:
+        return time.time() - f.stat().st_mtime
+    except FileNotFoundError:
+        return math.inf
 
 
 def test_run_has_private_domain_and_localhost_discovery():
@@ -65,10 +70,11 @@ def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):
     # processes' files are let reach it, so the survivor's are kept for being held, not young.
     mine = victim_files | survivor_files
     rosutil.wait_for(lambda: min(_age(f) for f in mine) >= MIN_AGE_S, 10.0, what="the segments' age")
-    removed = rosutil.clean_stale_fastdds_shm(min_age_s=MIN_AGE_S)
-    assert victim_files <= set(removed)
+    removed = set(rosutil.clean_stale_fastdds_shm(min_age_s=MIN_AGE_S))
+    # Gone: by this clean-up, or by another run's that came first (the other xdist worker cleans at
+    # each module's end), so the test cannot insist they are all in `removed`.
     assert not any(f.exists() for f in victim_files)
-    assert all(f.exists() for f in survivor_files), "a live process's shm segment was removed"
+    assert not removed & survivor_files and all(f.exists() for f in survivor_files), "a live process's shm segment was removed"
     assert survivor.returncode is None
 
 

@@ -103,8 +103,13 @@ def _flight(bag: Path) -> dict[str, list[bytes]]:
 
     st = read_bag(bag, ["/lander/state"]).topics["/lander/state"]
     start = max(i for i, m in enumerate(st.messages) if m.sequence == 1)
-    t_start = int(st.t_bag_ns[start])  # answers to earlier epochs (start-up handshake) come before
-    msgs = raw_messages(bag, since={t: t_start for t in TOPICS})
+    t_start = int(st.t_bag_ns[start])  # earlier epochs' states (the start-up handshake) come before
+    # The other topics from just after the previous epoch's last state: the recorder hears two
+    # writers, and under load this epoch's answer to state 1 reached it before state 1 did (seen
+    # in two xdist workers beside a busy core). Earlier epochs had a state 1 only; their answers
+    # are handled below.
+    t_prev = int(st.t_bag_ns[start - 1]) + 1 if start > 0 else 0
+    msgs = raw_messages(bag, since={t: t_start if t == "/lander/state" else t_prev for t in TOPICS})
     states = [(r, m) for r, m in msgs["/lander/state"] if stamp_s(m.header.stamp) <= FLIGHT_S]
     seqs = {m.sequence for _, m in states}
     np.testing.assert_array_equal(sorted(seqs), np.arange(1, len(states) + 1))  # nothing lost
@@ -113,8 +118,9 @@ def _flight(bag: Path) -> dict[str, list[bytes]]:
     answers = [(r, m) for r, m in msgs["/lander/throttle"] if m.state_sequence in asked]
     # The handshake's earlier resets each had a state 1 too, and an answer to one of them can reach
     # the recorder after this reset's state 1 (two writers: nothing orders them; seen once in a
-    # long run). They answer the same state with the controller's memory cleared, so they must be
-    # byte-identical; one is kept. Every later state exists in this epoch only.
+    # long run), and with t_prev above the last earlier one's is read too. They answer the same
+    # state with the controller's memory cleared, so they must be byte-identical; one is kept.
+    # Every later state exists in this epoch only.
     firsts = [r for r, m in answers if m.state_sequence == 1]
     assert firsts and all(r == firsts[0] for r in firsts), "the answers to state 1 differ"
     kept = next(i for i, (_, m) in enumerate(answers) if m.state_sequence == 1)

@@ -8,9 +8,9 @@ process still in its domain is given 5 s to exit, then killed, and the module's 
 naming it (a leaked node is a defect). At session end Fast DDS shared-memory files of dead
 processes are removed.
 
-``./dev test`` runs the suite in pytest-xdist workers (``-n auto --dist loadfile``): each worker is a
-run of its own in the sense above (its own domain ids, held by lock files), and a test file runs
-whole in one worker.
+In pytest-xdist workers (opt-in: ``./dev test -n auto --dist loadfile``) each worker is a run of
+its own in the sense above (its own domain ids, held by lock files), and a test file runs whole in
+one worker; see the README's "Tests in parallel" for what that load does to a 2-core machine.
 
 Fixtures for other tests:
   ros_context   a fresh rclpy Context, initialised for the test and shut down after it

@@ -237,7 +237,7 @@ def test_hover_attitude_fast_enough_to_take_the_last_drift_out_under_the_canopy(
 @pytest.mark.slow  # two flights and their optimum, ~25 s
 def test_braking_at_the_mixers_ceiling_counts_the_thrust_it_gives_not_the_one_asked(monkeypatch):
     """Case 140 (6.2 m/s of wind from the north): the braking rides the mixer's ceiling (the
-    attitude law's share on top of the collective) and the thrust flown is 0.2-0.3 under the one
+    attitude law's share on top of the collective) and the thrust flown is 10-30 % under the one
     asked for. The horizontal loop's lag term counted that missing thrust's horizontal part as
     speed already being taken out, asked for too little, and the hover began with 0.29 m/s of
     ground speed, over the band's 0.2: 1.080 x the optimum. Counting at the ceiling the thrust the

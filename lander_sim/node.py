@@ -489,6 +489,8 @@ class SimNode(Node):
         # Nothing is published: the last state (at every tick boundary) already is the pause instant.
         # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
         was = "paused" if self.gate.pause().paused else "running"
+        if was == "running":
+            self.pacer.stop(self.sim.t + self._k * self.sim.dt)  # behind when it stopped: counted
         response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was}){FLIGHT_SUFFIX}{self._flight}"
         return response
 

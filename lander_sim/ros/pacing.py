@@ -37,17 +37,37 @@ class Pacer:
         self._anchor_wall = 0.0
         self._anchor_sim = 0.0
         self._anchored = False
-        #: Times the schedule was re-anchored because the loop fell behind.
+        #: Wall instant the next schedule starts from (set by :meth:`restart`); None: the first tick.
+        self._start_wall: float | None = None
+        #: Times the loop was found more than ``max_lag`` behind its schedule (at a tick or a stop).
         self.overruns = 0
 
     def set_speed(self, speed: float) -> None:
         """Change the real-time factor; the schedule restarts from the next tick."""
         self.speed = speed
         self._anchored = False
+        self._start_wall = None
 
     def restart(self) -> None:
-        """Forget the schedule (after a pause, reset or step service)."""
+        """Start a new schedule now (a resume, reset or step service): the first tick is due one
+        control period from this instant, so a loop that only gets to it later is behind and
+        counted like any other (a resume answered, then the process starved of CPU)."""
         self._anchored = False
+        self._start_wall = self._clock()
+
+    def stop(self, t_next: float) -> None:
+        """The loop stops (a pause) before the tick that would end at sim time ``t_next``; count
+        an overrun if that tick was already more than ``max_lag`` overdue, so a loop that fell
+        behind just before it stopped says so too."""
+        if self.speed > 0.0 and (self._anchored or self._start_wall is not None):
+            if self._anchored:
+                due = self._anchor_wall + (t_next - self._anchor_sim) / self.speed
+            else:  # restarted, its first tick not reached yet
+                due = self._start_wall + self._period / self.speed
+            if self._clock() - due > self.max_lag:
+                self.overruns += 1
+        self._anchored = False
+        self._start_wall = None
 
     def wait_time(self, t_next: float) -> float:
         """Wall seconds until the tick that ends at sim time ``t_next`` is due (0: now)."""
@@ -55,10 +75,11 @@ class Pacer:
             return 0.0
         now = self._clock()
         if not self._anchored:
-            # The first tick after (re)starting is due one control period from now.
-            self._anchor_wall = now
+            # The first tick after (re)starting is due one control period from the restart.
+            self._anchor_wall = now if self._start_wall is None else self._start_wall
             self._anchor_sim = t_next - self._period
             self._anchored = True
+            self._start_wall = None
         due = self._anchor_wall + (t_next - self._anchor_sim) / self.speed
         lag = now - due
         if lag > self.max_lag:
@@ -74,3 +95,4 @@ class Pacer:
             raise ValueError(f"control period must be > 0 s, got {period!r}")
         self._period = period
         self._anchored = False
+        self._start_wall = None

@@ -101,6 +101,30 @@ def test_pacer_schedules_ticks_at_the_real_time_factor():
     assert Pacer(speed=0.0, period=0.02, clock=lambda: 0.0).wait_time(5.0) == 0.0
 
 
+def test_the_pacer_counts_a_loop_that_was_behind_when_it_started_or_stopped():
+    """A schedule starts at the restart (a resume), not at the loop's first look at it, and a stop
+    (a pause) checks the tick it stops before: a process starved right after a resume or right
+    before a pause ran slower than asked, and must say so like a loop late at a tick."""
+    now = [0.0]
+    p = Pacer(speed=10.0, period=0.02, clock=lambda: now[0])
+    p.restart()
+    now[0] = 0.05  # first tick due at 0.002; 0.048 late is within max_lag (0.1)
+    assert p.wait_time(0.02) == 0.0 and p.overruns == 0
+    assert p.wait_time(0.04) == 0.0  # due 0.004: still on the same schedule, behind by 0.046
+    now[0] = 0.2
+    p.stop(0.06)  # due 0.006, stopped at 0.2: 0.194 behind
+    assert p.overruns == 1
+    p.restart()  # resumed at 0.2 ...
+    now[0] = 0.5  # ... first looked at 0.5: its first tick (due 0.202) is 0.298 late
+    assert p.wait_time(0.08) == 0.0 and p.overruns == 2
+    assert p.wait_time(0.10) == pytest.approx(0.002)  # re-anchored there
+    p.stop(0.12)  # on time: not counted
+    p.restart()
+    now[0] = 0.9
+    p.stop(0.12)  # stopped before its first tick, which was due at 0.502
+    assert p.overruns == 3
+
+
 def test_the_per_tick_readout_agrees_with_the_cores_derived_quantities():
     """The node computes altitude, climb rate, ground speed, mass, Euler angles and the gimbal flag
     itself (cheaper than Simulation.derived()); same definitions, so equal to rounding (1e-9 m/s,

@@ -5,10 +5,10 @@ and localhost-only discovery, so parallel runs and other engineers' nodes never 
 processes inherit both through the environment. Each test module then gets a fresh domain of its
 own, so nodes a failing test leaves behind cannot disturb the next module; at the module's end any
 process still in its domain is given 5 s to exit, then killed, and the module's last test errors
-naming it (a leaked node is a defect). At session end Fast DDS shared-memory files of dead
-processes are removed.
+naming it (a leaked node is a defect) and dead processes' Fast DDS segments and half-made ports
+are removed. At session end (in the controller, under xdist) all dead processes' shm files go.
 
-In pytest-xdist workers (opt-in: ``./dev test -n auto --dist loadfile``) each worker is a run of
+In pytest-xdist workers (``./dev test`` runs ``-n auto --dist loadfile``) each worker is a run of
 its own in the sense above (its own domain ids, held by lock files), and a test file runs whole in
 one worker; see the README's "Tests in parallel" for what that load does to a 2-core machine.
 
@@ -34,7 +34,11 @@ import pytest
 import rosutil
 
 ROS_DOMAIN_ID = rosutil.isolate_middleware()
-rosutil.clean_stale_fastdds_shm()  # before any participant could open a dead one (see its docstring)
+#: In a pytest-xdist worker (the others are running tests meanwhile), not the whole run.
+XDIST_WORKER = "PYTEST_XDIST_WORKER" in os.environ
+# Before any participant could open a dead port (see its docstring). A worker leaves ports to
+# Fast DDS: its siblings may be opening them; the controller cleaned before starting them.
+rosutil.clean_stale_fastdds_shm(zombie_ports=not XDIST_WORKER)
 _module_seeds = itertools.count(ROS_DOMAIN_ID)  # claim_domain_id maps the seed into 1..101
 REPO_ROOT = Path(__file__).resolve().parent.parent
 TEST_DIR = Path(__file__).resolve().parent
@@ -68,7 +72,7 @@ def pytest_report_header(config: pytest.Config) -> str:
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    rosutil.clean_stale_fastdds_shm()
+    rosutil.clean_stale_fastdds_shm(zombie_ports=not XDIST_WORKER)  # the controller's comes last
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -82,7 +86,9 @@ def module_ros_domain() -> Iterator[int]:
     finally:
         os.environ["ROS_DOMAIN_ID"] = str(ROS_DOMAIN_ID)
         leaked = rosutil.reap_domain(domain)
-        rosutil.clean_stale_fastdds_shm()  # a killed node's ports must not hang the next module
+        # A killed node's half-made port must not hang the next module; its dead ports with locks
+        # are left to Fast DDS, since another run's participants may be opening them now.
+        rosutil.clean_stale_fastdds_shm(zombie_ports=False)
         rosutil.release_domain_id(domain)
         if leaked:
             raise RuntimeError(f"processes left running in ROS_DOMAIN_ID={domain} (killed):\n  " + "\n  ".join(leaked))

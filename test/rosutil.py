@@ -126,7 +126,8 @@ def isolate_middleware(env: dict[str, str] | None = None, domain_id: int | None 
     return domain
 
 
-def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float = 2.0) -> list[Path]:
+def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float = 2.0,
+                            zombie_ports: bool = True) -> list[Path]:
     """Remove Fast DDS shared-memory files left by processes that died (e.g. SIGKILLed nodes).
 
     Each segment ``fastdds_<16 hex>`` and each port ``fastdds_port<N>`` has a lock file ``..._el``
@@ -137,6 +138,13 @@ def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float =
     never-initialised file, and every later participant that picks that port number spins forever
     waiting for its initialisation (seen: the whole suite hung in ``Node()``). Files younger than
     ``min_age_s`` are left alone: their creator may not have locked them yet.
+
+    ``zombie_ports=False`` leaves a port whose lock files exist but are not held: while other
+    processes may be starting participants. Port numbers (``fastdds_port7000`` up) are shared by
+    every domain, and a participant that picks a dead one re-initialises and reuses it (checked:
+    a SIGKILLed node's port 7000 was taken over by the next participant, and gone when it exited);
+    removing it meanwhile races that participant (seen: ``open_and_lock_file failed`` in the other
+    pytest-xdist worker). Segments are named per participant, so a dead one's is never reopened.
     """
     removed: list[Path] = []
     shm = Path(shm_dir)
@@ -169,6 +177,8 @@ def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float =
             continue  # a segment is always created with its lock: leave unknown files alone
         if any(held(lk) for lk in locks):
             continue
+        if not zombie_ports and base.name.startswith("fastdds_port") and any(lk.exists() for lk in locks):
+            continue  # Fast DDS takes it over itself; see the docstring
         for f in (base, *locks, shm / f"sem.{base.name}_mutex"):
             try:
                 f.unlink()

@@ -115,3 +115,47 @@ def test_a_dead_port_with_its_lock_file_is_left_to_fast_dds_while_others_may_ope
     assert port.exists()
     removed = rosutil.clean_stale_fastdds_shm(tmp_path, min_age_s=0.0)
     assert set(removed) == {port, tmp_path / "fastdds_port7002_el"}
+
+
+def _starts_ros(path: Path) -> list[str]:
+    """What in a test file's code (not its docstrings) starts ROS participants: rclpy imported (but
+    for its serialisation) or required, the ROS fixtures taken, the flight starters imported, a
+    `lander fly` run."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found += [a.name for a in node.names if a.name.split(".")[0] == "rclpy"]
+        elif isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if mod.split(".")[0] == "rclpy" and mod != "rclpy.serialization":
+                found.append(mod)
+            found += [a.name for a in node.names if a.name in ("start_fly", "fly_recorded", "Stack")]
+        elif isinstance(node, ast.FunctionDef) and node.name.startswith("test"):
+            found += [a.arg for a in node.args.args if a.arg in ("ros_node", "ros_context", "spawn_python")]
+        elif isinstance(node, ast.Call):
+            consts = [a.value for a in node.args if isinstance(a, ast.Constant)]
+            if "rclpy" in consts or "fly" in consts:  # pytest.importorskip("rclpy"), _lander("fly", ...)
+                found.append(f"a call with {consts[0]!r}")
+    return found
+
+
+def test_every_test_file_that_starts_ros_participants_runs_in_the_ros_worker():
+    """conftest's ROS_TESTS puts them in one pytest-xdist worker (see there why); one left out would
+    start participants beside the other worker's again. The check reads the code for the usual ways
+    in (``_starts_ros``); the node tests' own fixtures (a folder's conftest) it does not follow,
+    which is why ROS_TESTS names whole folders."""
+    import conftest
+
+    test_dir = HERE.parent
+    missed = {}
+    for path in sorted(test_dir.rglob("test_*.py")):
+        rel = path.relative_to(test_dir).as_posix()
+        if not rel.startswith(conftest.ROS_TESTS) and (why := _starts_ros(path)):
+            missed[rel] = why
+    assert not missed, f"add these to ROS_TESTS in test/conftest.py: {missed}"
+    # and the check sees them where they are
+    for known in ("tools/test_record_command.py", "sweep/test_through_ros.py", "tools/test_headline_flight.py",
+                  "reliability/test_determinism.py"):
+        assert _starts_ros(test_dir / known), known

@@ -143,8 +143,8 @@ def clean_stale_fastdds_shm(shm_dir: str | Path = "/dev/shm", min_age_s: float =
     processes may be starting participants. Port numbers (``fastdds_port7000`` up) are shared by
     every domain, and a participant that picks a dead one re-initialises and reuses it (checked:
     a SIGKILLed node's port 7000 was taken over by the next participant, and gone when it exited);
-    removing it meanwhile races that participant (seen: ``open_and_lock_file failed`` in the other
-    pytest-xdist worker). Segments are named per participant, so a dead one's is never reopened.
+    removing it meanwhile can pull the file from under that participant (another run's, or another
+    pytest-xdist worker's). Segments are named per participant, so a dead one's is never reopened.
     """
     removed: list[Path] = []
     shm = Path(shm_dir)

@@ -60,11 +60,9 @@ class Pacer:
         an overrun if that tick was already more than ``max_lag`` overdue, so a loop that fell
         behind just before it stopped says so too."""
         if self.speed > 0.0 and (self._anchored or self._start_wall is not None):
-            if self._anchored:
-                due = self._anchor_wall + (t_next - self._anchor_sim) / self.speed
-            else:  # restarted, its first tick not reached yet
-                due = self._start_wall + self._period / self.speed
-            if self._clock() - due > self.max_lag:
+            now = self._clock()
+            self._anchor(now, t_next)  # restarted, its first tick not reached yet: due from the restart
+            if now - self._due(t_next) > self.max_lag:
                 self.overruns += 1
         self._anchored = False
         self._start_wall = None
@@ -74,13 +72,8 @@ class Pacer:
         if self.speed <= 0.0:
             return 0.0
         now = self._clock()
-        if not self._anchored:
-            # The first tick after (re)starting is due one control period from the restart.
-            self._anchor_wall = now if self._start_wall is None else self._start_wall
-            self._anchor_sim = t_next - self._period
-            self._anchored = True
-            self._start_wall = None
-        due = self._anchor_wall + (t_next - self._anchor_sim) / self.speed
+        self._anchor(now, t_next)
+        due = self._due(t_next)
         lag = now - due
         if lag > self.max_lag:
             self.overruns += 1
@@ -88,6 +81,19 @@ class Pacer:
             self._anchor_sim = t_next
             return 0.0
         return max(0.0, due - now)
+
+    def _anchor(self, now: float, t_next: float) -> None:
+        """Anchor the schedule if it is not: the first tick after (re)starting, the one ending at
+        ``t_next``, is due one control period from the restart (from ``now`` if none was made)."""
+        if not self._anchored:
+            self._anchor_wall = now if self._start_wall is None else self._start_wall
+            self._anchor_sim = t_next - self._period
+            self._anchored = True
+            self._start_wall = None
+
+    def _due(self, t_next: float) -> float:
+        """Wall instant the tick ending at sim time ``t_next`` is due on the anchored schedule."""
+        return self._anchor_wall + (t_next - self._anchor_sim) / self.speed
 
     def set_period(self, period: float) -> None:
         """Sim-time length of one control period [s]."""

@@ -10,7 +10,7 @@ are removed. At session end (in the controller, under xdist) all dead processes'
 
 In pytest-xdist workers (``./dev test`` runs ``-n auto --dist loadgroup``) each worker is a run of
 its own in the sense above (its own domain ids, held by lock files); the files that start ROS
-participants (``ROS_TESTS``) run in one worker, the others file by file in any (README, "Tests in
+participants (``rosutil.ROS_TESTS``) run in one worker, the others file by file in any (README, "Tests in
 parallel").
 
 Fixtures for other tests:
@@ -51,7 +51,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "slow: long test, skipped unless --runslow is given")
-    # Set on every test (ROS_TESTS); pytest-xdist defines it too, but it may be absent (colcon test).
+    # Set on every test (rosutil.ROS_TESTS); pytest-xdist defines it too, but it may be absent (colcon test).
     config.addinivalue_line("markers", "xdist_group(name): the pytest-xdist worker group of a test")
 
 
@@ -60,24 +60,11 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     return max(1, min(4, os.cpu_count() or 1))
 
 
-#: Test files (folders end in "/") that start ROS participants, in the test process or in child
-#: processes. Under pytest-xdist (``--dist loadgroup``) they all run in one worker, one after the
-#: other as in a one-process run, while the other workers take the rest file by file: Fast DDS
-#: allocates shared-memory ports machine-wide (``fastdds_port7000`` up, whatever the domain), and
-#: when two workers start participants at once on a loaded machine, a participant's wait for a
-#: port's mutex times out and it breaks the mutex (eProsima/Fast-DDS#6117). Seen twice in two
-#: workers: "Failed init_port fastdds_port7001: open_and_lock_file failed", and a flight whose
-#: nodes never met. A new ROS test file belongs here.
-ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
-             "sweep/test_through_ros.py", "tools/test_headline_flight.py", "tools/test_record_command.py",
-             "test_cli.py")
-
-
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the groups into the test ids
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
-        rel = Path(str(item.path)).resolve().relative_to(TEST_DIR).as_posix()
-        item.add_marker(pytest.mark.xdist_group("ros" if rel.startswith(ROS_TESTS) else rel))
+        rel = Path(item.path).resolve().relative_to(TEST_DIR).as_posix()
+        item.add_marker(pytest.mark.xdist_group("ros" if rel.startswith(rosutil.ROS_TESTS) else rel))
     if config.getoption("--runslow"):
         return
     skip = pytest.mark.skip(reason="slow: run with --runslow")

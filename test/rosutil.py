@@ -21,6 +21,19 @@ from typing import Any
 # Fast DDS maps a domain id to UDP ports 7400 + 250 * id; above 101 they collide with Linux's
 # ephemeral port range. 0 is what an unconfigured ROS process uses: tests never share it.
 DOMAIN_MIN, DOMAIN_MAX = 1, 101
+
+#: Test files (paths under test/, folders end in "/") that start ROS participants, in the test
+#: process or in child processes. Under pytest-xdist (``--dist loadgroup``; conftest sets the
+#: groups) they all run in one worker, one after the other as in a one-process run, while the other
+#: workers take the rest file by file: Fast DDS allocates shared-memory ports machine-wide
+#: (``fastdds_port7000`` up, whatever the domain), and when two workers start participants at once
+#: on a loaded machine, a participant's wait for a port's mutex times out and it breaks the mutex
+#: (eProsima/Fast-DDS#6117). Seen in two workers: "Failed init_port fastdds_port7001:
+#: open_and_lock_file failed", and a flight whose nodes never met. A new ROS test file belongs here.
+ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
+             "sweep/test_through_ros.py", "tools/test_headline_flight.py", "tools/test_record_command.py",
+             "test_cli.py")
+
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"
 _held_locks: dict[int, Any] = {}  # domain -> its open lock file (held until released or exit)
 

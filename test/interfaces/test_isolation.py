@@ -142,23 +142,17 @@ def _starts_ros(path: Path) -> list[str]:
 
 
 def test_every_test_file_that_starts_ros_participants_runs_in_the_ros_worker():
-    """conftest's ROS_TESTS puts them in one pytest-xdist worker (see there why); one left out would
+    """rosutil.ROS_TESTS puts them in one pytest-xdist worker (see there why); one left out would
     start participants beside the other worker's again. The check reads the code for the usual ways
     in (``_starts_ros``); the node tests' own fixtures (a folder's conftest) it does not follow,
     which is why ROS_TESTS names whole folders."""
-    import ast
-
     test_dir = HERE.parent
-    # Read from the file: `import conftest` can give another folder's conftest (seen under xdist).
-    tree = ast.parse((test_dir / "conftest.py").read_text())
-    ros_tests = next(ast.literal_eval(n.value) for n in tree.body
-                     if isinstance(n, ast.Assign) and any(getattr(t, "id", "") == "ROS_TESTS" for t in n.targets))
     missed = {}
     for path in sorted(test_dir.rglob("test_*.py")):
         rel = path.relative_to(test_dir).as_posix()
-        if not rel.startswith(ros_tests) and (why := _starts_ros(path)):
+        if not rel.startswith(rosutil.ROS_TESTS) and (why := _starts_ros(path)):
             missed[rel] = why
-    assert not missed, f"add these to ROS_TESTS in test/conftest.py: {missed}"
+    assert not missed, f"add these to ROS_TESTS in test/rosutil.py: {missed}"
     # and the check sees them where they are
     for known in ("tools/test_record_command.py", "sweep/test_through_ros.py", "tools/test_headline_flight.py",
                   "reliability/test_determinism.py"):

@@ -85,3 +85,29 @@ def altitude_rhs(x: np.ndarray, u: np.ndarray, vehicle: Vehicle, fuel: float) ->
     """Nonlinear eq 10 without drag: ``[z', -GM/z^2 + T_v t / m]`` for ``x = [z, z']``, ``u = [t]``."""
     z, zd = x
     return np.array([zd, -GM_MARS / (z * z) + vertical_thrust(vehicle) * u[0] / vehicle.mass(fuel)])
+
+
+def balanced_thrust(vehicle: Vehicle) -> tuple[float, float]:
+    """The most thrust along body ``+z`` the thrusters give with no torque: ``(T [N], fuel flow [kg/s])``.
+
+    ``max sum_i (-d_i . z_B) T_i t_i`` subject to ``M t = 0`` (:func:`.attitude.thrust_torque_matrix`)
+    and ``0 <= t_i <= 1``, a linear programme. For the nominal lander's symmetric thrusters it is
+    :func:`vertical_thrust` at full throttle; a thruster off its rating or its cant makes full
+    throttle on all of them a torque, which a law that holds its attitude must cancel, so a sustained
+    burn gets less (e.g. 0.95 of ``T_v`` with +-3 % of thrust and 0.5 degrees of cant per thruster).
+    The point-mass yardstick with this bound is the least fuel the rigid vehicle can reach.
+    """
+    from scipy.optimize import linprog
+
+    from .attitude import thrust_torque_matrix
+
+    axial = np.array([-t.direction_B[2] * t.max_thrust if t.enabled else 0.0 for t in vehicle.thrusters])
+    flow = np.array([t.fuel_rate if t.enabled else 0.0 for t in vehicle.thrusters])
+    M = thrust_torque_matrix(vehicle)
+    # the torque rows scaled to the thrust's: the equality's tolerance is then a fraction of the thrust
+    scale = max(float(np.abs(M).max()), 1e-12) / max(float(np.abs(axial).max()), 1e-12)
+    res = linprog(-axial, A_eq=M / scale, b_eq=np.zeros(3), bounds=[(0.0, 1.0)] * len(axial), method="highs")
+    if res.status != 0:
+        raise DesignError(f"balanced thrust: the linear programme failed ({res.message})")
+    t = np.clip(res.x, 0.0, 1.0)
+    return float(axial @ t), float(flow @ t)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 
@@ -9,8 +10,8 @@ import numpy as np
 import pytest
 
 from lander_autopilot.design import DesignError
-from lander_autopilot.design.altitude import altitude_model, hover_throttle, vertical_thrust
-from lander_autopilot.design.attitude import UPRIGHT_EULER, attitude_model
+from lander_autopilot.design.altitude import altitude_model, balanced_thrust, hover_throttle, vertical_thrust
+from lander_autopilot.design.attitude import UPRIGHT_EULER, attitude_model, thrust_torque_matrix
 from lander_autopilot.design.controllability import controllability, controllability_matrix
 from lander_autopilot.design.gains import lqr, match_poles, place_poles
 from lander_autopilot.design.numerical import altitude_rhs, attitude_rhs, linearise
@@ -82,6 +83,31 @@ def test_vertical_thrust_of_canted_layout_is_the_cosine_share(canted, vertical):
     # Each canted exhaust is (+-0.25, 0, -1)/|.|: its vertical share is 1/sqrt(1.0625).
     assert vertical_thrust(vertical) == pytest.approx(4 * LANDER_MAX_THRUST, rel=1e-15)
     assert vertical_thrust(canted) == pytest.approx(4 * LANDER_MAX_THRUST / math.sqrt(1.0625), rel=1e-15)
+
+
+def test_balanced_thrust_is_the_most_the_thrusters_give_with_no_torque(canted):
+    # The nominal canted layout is symmetric: every thruster flat out makes no torque.
+    T, flow = balanced_thrust(canted)
+    assert T == pytest.approx(vertical_thrust(canted), rel=1e-9)
+    assert flow == pytest.approx(sum(t.fuel_rate for t in canted.thrusters), rel=1e-9)
+    # One thruster 3 % weak and another canted 0.5 degrees off: full throttle on all four is a torque.
+    # With four thrusters the torque map (rank 3) has one null vector, the only torque-free mix
+    # (found here by SVD, independently of the linear programme): scaled so that its largest
+    # throttle is 1, it gives the most thrust with no torque.
+    ts = list(canted.thrusters)
+    ts[0] = dataclasses.replace(ts[0], max_thrust=0.97 * ts[0].max_thrust)
+    c, s = math.cos(0.0087), math.sin(0.0087)
+    d = ts[2].direction_B
+    ts[2] = dataclasses.replace(ts[2], direction_B=np.array([c * d[0] - s * d[2], d[1], s * d[0] + c * d[2]]))
+    off = dataclasses.replace(canted, thrusters=tuple(ts))
+    M = thrust_torque_matrix(off)
+    n = np.linalg.svd(M)[2][-1]
+    n = n / n[np.argmax(np.abs(n))]
+    axial = np.array([-t.direction_B[2] * t.max_thrust for t in ts])
+    T, flow = balanced_thrust(off)
+    assert T == pytest.approx(float(axial @ n), rel=1e-9)
+    assert flow == pytest.approx(sum(t.fuel_rate * x for t, x in zip(ts, n)), rel=1e-9)
+    assert T < vertical_thrust(off) * 0.99  # not the nameplate sum: ~3 % of it is lost to the balance
 
 
 @pytest.mark.parametrize("layout", ["standard", "canted"])

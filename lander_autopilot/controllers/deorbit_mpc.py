@@ -35,7 +35,7 @@ from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
-from ..design.altitude import vertical_thrust
+from ..design.altitude import balanced_thrust, vertical_thrust
 from ..design.translational import local_frame
 from ..guidance.descent_mpc import DescentMpc, MpcSettings
 from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError
@@ -57,7 +57,7 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
                      max_tilt: float = 0.7, chute_open: bool = True,
                      surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY,
                      wind_W: np.ndarray | None = None, drag_scale: float = 1.0,
-                     thrust_scale: float = 1.0) -> tuple[DescentProblem, np.ndarray]:
+                     thrust_scale: float = 1.0, balanced: bool = False) -> tuple[DescentProblem, np.ndarray]:
     """The minimum-fuel problem from a handover state to rest at ``demand_altitude`` [m], and its frame.
 
     Local frame: ENU at ``r_W`` (rows of the returned 3x3 ``L``), origin on the surface below,
@@ -69,12 +69,19 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     ``wind_W`` [m/s, world] a steady wind, none by default; ``drag_scale`` multiplies the modelled
     drag: the flown law's measured / modelled drag under the chute; ``thrust_scale`` multiplies the
     thrust at the same fuel flow: the flown law's measured / modelled thrust acceleration,
-    :class:`.calibration.ThrustCalibration`).
+    :class:`.calibration.ThrustCalibration`). With ``balanced`` the thrust bound and its fuel flow are
+    the most the thrusters give with no torque (:func:`..design.altitude.balanced_thrust`) rather than
+    every thruster flat out: the same for the nominal vehicle, less for a dispersed one, whose
+    attitude law must cancel the torque of full throttle on all of them.
     """
     L = local_frame(r_W)
     h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
-    axial = vertical_thrust(vehicle) * thrust_scale
-    mdot = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)
+    if balanced:
+        axial, mdot = balanced_thrust(vehicle)
+        axial *= thrust_scale
+    else:
+        axial = vertical_thrust(vehicle) * thrust_scale
+        mdot = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)
     limits = DescentLimits(rho_max=axial, alpha=mdot / axial, dry_mass=vehicle.dry_mass, max_tilt=max_tilt)
     k = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA
     if chute_open:

@@ -193,15 +193,18 @@ def fly_case(
             touchdown_speed, touchdown = _touchdown_speed(sim, v_before)
 
     fuel_end = float(sim.state().fuel) if terminal != "diverged" else math.nan
-    optimum = math.nan
-    if handover is not None and not math.isnan(band_fuel) and ({"powered_optimum", "fuel_ratio"} & set(spec.metrics)):
-        optimum = powered_optimum(sim, handover, h_after)
+    optimum = balanced = math.nan
+    if handover is not None and not math.isnan(band_fuel):
+        if {"powered_optimum", "fuel_ratio"} & set(spec.metrics):
+            optimum = powered_optimum(sim, handover, h_after)
+        if {"powered_optimum_balanced", "fuel_ratio_balanced"} & set(spec.metrics):
+            balanced = powered_optimum(sim, handover, h_after, balanced=True)
     samples = Samples(
         t=np.asarray(ts), altitude_error=np.asarray(errs), tilt=np.asarray(tilts), body_rate=np.asarray(rates),
         fuel_start=fuel0, fuel_end=fuel_end, saturated_updates=sat_steps, period=period,
         touchdown_speed=touchdown_speed, terminal=terminal, t_change=t_change, touchdown=touchdown,
         speed=np.asarray(speeds), mode_fuel=mode_fuel, compute_time=compute, diagnostics=dict(ctrl.diagnostics()),
-        powered_optimum=optimum, band_fuel=band_fuel,
+        powered_optimum=optimum, powered_optimum_balanced=balanced, band_fuel=band_fuel,
     )
     row = make_row(spec, controller_index, index, case, samples)
     traj = None
@@ -250,12 +253,14 @@ def _chute_open(sim: Any) -> bool:
     return chute is not None and getattr(chute.status, "name", "") == "DEPLOYED"
 
 
-def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float) -> float:
+def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float,
+                    balanced: bool = False) -> float:
     """The issue-14 yardstick of a flight: the minimum fuel [kg] from its handover state (world frame
     ``r_W``, ``v_W``, fuel, chute open) to rest at ``demand_altitude`` [m], with the flown vehicle (its
     thrust, mass and cant dispersions), the flown atmosphere's surface density and the scene's mean
     wind (the gusts are not modelled: they average out over the burn). 30 nodes, final time to 1e-3 s (the fuel agrees with 60 nodes to ~1e-6 from the
-    common handover case, bench/deorbit_fuel.py uses 60). NaN when the convex problem is infeasible."""
+    common handover case, bench/deorbit_fuel.py uses 60). NaN when the convex problem is infeasible.
+    ``balanced``: the thrust bound the flown thrusters give with no torque (``handover_problem``'s)."""
     from lander_autopilot.controllers.deorbit_mpc import handover_problem
     from lander_autopilot.guidance.fuel_optimal import GuidanceError, solve
 
@@ -264,7 +269,8 @@ def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, boo
     kwargs: dict[str, Any] = {"wind_W": np.asarray(sim.scene.wind_W, float)}
     if atmosphere is not None:
         kwargs["surface_density"] = float(atmosphere.surface_density)
-    problem, _frame = handover_problem(sim.scene.vehicle, r_W, v_W, fuel, demand_altitude, chute_open=chute, **kwargs)
+    problem, _frame = handover_problem(sim.scene.vehicle, r_W, v_W, fuel, demand_altitude, chute_open=chute,
+                                       balanced=balanced, **kwargs)
     try:
         return float(solve(problem, steps=30, t_tol=1e-3).fuel)
     except GuidanceError:

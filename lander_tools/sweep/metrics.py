@@ -19,6 +19,9 @@ definitions (``spec.METRICS``):
   fuel flown from there to the first instant within ``end.hover_band`` and ``end.hover_speed`` of the
   hover over it (the optimum's own end: a law that hands over below the band, or too fast, has
   the hover law's climb back and braking counted, which ``powered_fuel`` leaves out);
+* ``powered_optimum_balanced``, ``fuel_ratio_balanced``: the same with the thrust bound the flown
+  thrusters give with no torque (:func:`lander_autopilot.design.altitude.balanced_thrust`), the least
+  fuel the rigid vehicle can reach: a dispersed vehicle's attitude law takes a share of full throttle;
 * ``compute_time``, ``mpc_solve_time_*``: measured by the loop, carried as they are (not deterministic).
 """
 from __future__ import annotations
@@ -68,6 +71,8 @@ class Samples:
     diagnostics: dict[str, float] | None = None
     #: Minimum fuel [kg] from the state at the first ``powered-descent`` to rest at the demand (NaN: not solved).
     powered_optimum: float = math.nan
+    #: The same with the thrust the flown thrusters give with no torque (``balanced_thrust``); NaN: not solved.
+    powered_optimum_balanced: float = math.nan
     #: Fuel [kg] at the first instant after that within ``end.hover_band`` and ``end.hover_speed`` of the
     #: hover (the optimum's end, at rest at the demand, to the band's tolerance); NaN: never.
     band_fuel: float = math.nan
@@ -171,6 +176,8 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "powered_fuel": powered,
         "powered_optimum": s.powered_optimum,
         "fuel_ratio": (mode_fuel.get("powered-descent", math.nan) - s.band_fuel) / s.powered_optimum,
+        "powered_optimum_balanced": s.powered_optimum_balanced,
+        "fuel_ratio_balanced": (mode_fuel.get("powered-descent", math.nan) - s.band_fuel) / s.powered_optimum_balanced,
         "compute_time": s.compute_time,
         "mpc_solve_time_p99": float(diag.get("mpc_solve_time_p99", math.nan)),
         "mpc_solve_time_median": float(diag.get("mpc_solve_time_median", math.nan)),

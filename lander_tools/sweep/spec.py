@@ -211,6 +211,11 @@ METRICS: dict[str, str] = {
                        "without both modes)",
     "fuel_ratio": "fuel from the first powered-descent to the first instant within end.hover_band and "
                   "end.hover_speed, over powered_optimum [x optimum] (core-only; NaN without both)",
+    "powered_optimum_balanced": "powered_optimum with the thrust bound the flown thrusters give with no torque "
+                                "(design.altitude.balanced_thrust: less than every thruster flat out when their "
+                                "thrust or cant is off) [kg] (core-only; NaN without both modes)",
+    "fuel_ratio_balanced": "fuel_ratio over powered_optimum_balanced: against the least fuel the rigid vehicle can "
+                           "reach [x optimum] (core-only; NaN without both)",
     "compute_time": "CPU time in the controller's update calls over the flight, time.process_time [s] "
                     "(not deterministic; NaN on the batched path)",
     "mpc_solve_time_p99": "99th percentile of the MPC's solve times, from controller.diagnostics() [s] "
@@ -229,7 +234,7 @@ NONDETERMINISTIC_METRICS: tuple[str, ...] = ("compute_time", "mpc_solve_time_p99
 
 #: Metrics only the core-only loop computes (a convex solve from the simulator's own state at the
 #: handover): a bag's row has NaN, so the through-ROS comparison leaves them out.
-CORE_ONLY_METRICS: tuple[str, ...] = ("powered_optimum", "fuel_ratio")
+CORE_ONLY_METRICS: tuple[str, ...] = ("powered_optimum", "fuel_ratio", "powered_optimum_balanced", "fuel_ratio_balanced")
 
 
 def metric_unit(metric: str) -> str:

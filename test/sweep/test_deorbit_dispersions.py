@@ -355,6 +355,7 @@ def test_shipped_de_orbit_sweeps_compare_both_laws_over_200_flights():
         assert d.mass_error is not None and d.wind_mean is not None and d.wind_gust is not None
         assert "compute_time" in spec.metrics and "powered_fuel" in spec.metrics
         assert "fuel_ratio" in spec.metrics and "powered_optimum" in spec.metrics
+        assert "fuel_ratio_balanced" in spec.metrics and "powered_optimum_balanced" in spec.metrics
 
 
 # --------------------------------------------------------------------------- the fuel yardstick
@@ -399,6 +400,20 @@ def test_the_fuel_ratio_is_measured_against_the_optimum_from_the_flights_own_han
     # size); 30 against 60 nodes agree to ~1e-6, so the solve with the wind is told from the one without.
     assert abs(windy - expect) < 0.2 * abs(windy - dense)
 
+    # The balanced yardstick: the nominal lander's thrusters are symmetric, so the thrust with no torque
+    # is every thruster flat out and the two optima are one. One thruster 3 % weak: full throttle on all
+    # four is a torque, the balanced bound is lower, and its optimum (a longer burn) needs more fuel.
+    assert flight.powered_optimum(sim, handover, 500.0, balanced=True) == pytest.approx(windy, rel=1e-9)
+    ts = list(sim.scene.vehicle.thrusters)
+    ts[0] = dataclasses.replace(ts[0], max_thrust=0.97 * ts[0].max_thrust)
+    weak = dataclasses.replace(sim.scene.vehicle, thrusters=tuple(ts))
+    sim.scene = dataclasses.replace(sim.scene, vehicle=weak)
+    nameplate = flight.powered_optimum(sim, handover, 500.0)
+    balanced = flight.powered_optimum(sim, handover, 500.0, balanced=True)
+    expect = solve(handover_problem(weak, s.r_W, s.v_W, s.fuel, 500.0, surface_density=1.3 * rho0, wind_W=wind_W,
+                                    balanced=True)[0], steps=60, t_tol=1e-4).fuel
+    assert balanced == pytest.approx(expect, rel=1e-3) and balanced > nameplate * (1 + 1e-3)
+
     samples = Samples(t=np.array([0.0, 0.1]), altitude_error=np.zeros(2), tilt=np.zeros(2), body_rate=np.zeros(2),
                       fuel_start=70.0, fuel_end=50.0, saturated_updates=0, period=0.1, touchdown_speed=math.nan,
                       terminal="ok", t_change=0.0, speed=np.zeros(2),
@@ -407,7 +422,10 @@ def test_the_fuel_ratio_is_measured_against_the_optimum_from_the_flights_own_han
     _, _, m = evaluate(samples, spec.end)
     # the ratio counts to the band (the optimum's end), not to the hover mode
     assert m["powered_fuel"] == 12.0 and m["powered_optimum"] == 11.5 and m["fuel_ratio"] == 12.5 / 11.5
-    assert set(CORE_ONLY_METRICS) == {"powered_optimum", "fuel_ratio"}
+    assert set(CORE_ONLY_METRICS) == {"powered_optimum", "fuel_ratio", "powered_optimum_balanced", "fuel_ratio_balanced"}
+    samples.powered_optimum_balanced = 11.9
+    _, _, m = evaluate(samples, spec.end)
+    assert m["powered_optimum_balanced"] == 11.9 and m["fuel_ratio_balanced"] == 12.5 / 11.9
     row = {"index": 0, "controller": "x", "outcome": "hovered", "powered_fuel": 12.0, "powered_optimum": 11.5,
            "fuel_ratio": 12.0 / 11.5}
     assert compare_rows(row, {**row, "powered_optimum": math.nan, "fuel_ratio": math.nan}, spec.metrics) == []

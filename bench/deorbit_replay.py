@@ -72,6 +72,7 @@ class Replayed:
     #               "not held" after it), "down", "timeout", "diverged", "no snapshot"
     fuel_ratio: float = math.nan  # fuel from the powered descent's start to the band at rest / the optimum
     optimum: float = math.nan  # [kg] minimum fuel from the handover state (powered_optimum)
+    fuel_ratio_balanced: float = math.nan  # the same fuel over the optimum at the thrust with no torque
     hover_error: float = math.nan  # [m] altitude error where the `hover` phase began
     hover_climb: float = math.nan  # [m/s] climb rate there
     hover_drift: float = math.nan  # [m/s] ground speed there
@@ -91,21 +92,25 @@ def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
     mine = vars(old)
     frozen = getattr(getattr(old, "__dataclass_params__", None), "frozen", False)  # a design record
     for k, v in vars(fresh).items():
-        if k not in mine or (k in _GAINS and not frozen):
+        if k not in mine:
+            object.__setattr__(old, k, v)  # a field added since: a frozen record's too
+        elif k in _GAINS and not frozen:
             setattr(old, k, v)
         else:
             _fill_missing(mine[k], v, depth - 1)
 
 
-def _optimum(sim: Simulation, handover: tuple[np.ndarray, np.ndarray, float, bool], altitude: float, cache: str) -> float:
-    """:func:`powered_optimum`, cached on disk by the handover state (a solve takes 1-4 s) in a folder per altitude."""
+def _optimum(sim: Simulation, handover: tuple[np.ndarray, np.ndarray, float, bool], altitude: float, cache: str,
+             balanced: bool = False) -> float:
+    """:func:`powered_optimum`, cached on disk by the handover state (a solve takes 1-4 s) in a folder per
+    altitude (and per thrust bound: ``balanced``, the thrust with no torque)."""
     key = hashlib.sha1(b"".join(np.asarray(x, float).tobytes() for x in handover[:3]) + bytes([handover[3]])).hexdigest()
-    cache = os.path.join(cache, f"{altitude!r}")
+    cache = os.path.join(cache, f"{altitude!r}" + ("-balanced" if balanced else ""))
     path = os.path.join(cache, key)
     if os.path.exists(path):
         with open(path) as f:
             return float(f.read())
-    value = powered_optimum(sim, handover, altitude)
+    value = powered_optimum(sim, handover, altitude, balanced=balanced)
     os.makedirs(cache, exist_ok=True)
     with open(path, "w") as f:
         f.write(repr(value))
@@ -144,6 +149,8 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                     and math.sqrt(float(st.v_W @ st.v_W)) <= spec.end.hover_speed):
                 row.optimum = _optimum(sim, handover, h_after, os.path.join(folder, "optimum"))
                 row.fuel_ratio = (handover[2] - float(st.fuel)) / row.optimum
+                row.fuel_ratio_balanced = (handover[2] - float(st.fuel)) / _optimum(
+                    sim, handover, h_after, os.path.join(folder, "optimum"), balanced=True)
                 row.band_time, row.outcome = t - t_powered, "band"
                 if not hold:
                     return row
@@ -198,21 +205,23 @@ def _check(args: tuple[str, str, int]) -> tuple[int, float]:
 
 
 def summary(rows: list[Replayed], worst: int) -> str:
-    ratios = np.array([r.fuel_ratio for r in rows])
-    ok = np.isfinite(ratios)
     outcomes = {o: sum(r.outcome == o for r in rows) for o in sorted({r.outcome for r in rows})}
     lines = [f"{len(rows)} flights: " + ", ".join(f"{n} {o}" for o, n in outcomes.items())]
-    if ok.any():
-        x = ratios[ok]
-        p5, p50, p95 = np.percentile(x, [5, 50, 95])
-        lines.append(f"fuel_ratio [x optimum] p5 / p50 / p95 / max: {p5:.4f} / {p50:.4f} / {p95:.4f} / {x.max():.4f}, "
-                     f"mean {x.mean():.4f}; within 1.03 / 1.05 / 1.10: {(x <= 1.03).sum()} / {(x <= 1.05).sum()} / "
-                     f"{(x <= 1.10).sum()} of {ok.sum()}")
-    lines.append("worst: case, fuel_ratio, then where the hover began: altitude error [m], climb [m/s], ground speed [m/s]")
+    for name in ("fuel_ratio", "fuel_ratio_balanced"):
+        ratios = np.array([getattr(r, name) for r in rows])
+        ok = np.isfinite(ratios)
+        if ok.any():
+            x = ratios[ok]
+            p5, p50, p95 = np.percentile(x, [5, 50, 95])
+            lines.append(f"{name} [x optimum] p5 / p50 / p95 / max: {p5:.4f} / {p50:.4f} / {p95:.4f} / {x.max():.4f}, "
+                         f"mean {x.mean():.4f}; within 1.03 / 1.05 / 1.10: {(x <= 1.03).sum()} / {(x <= 1.05).sum()} / "
+                         f"{(x <= 1.10).sum()} of {ok.sum()}")
+    lines.append("worst: case, fuel_ratio (balanced), then where the hover began: altitude error [m], climb [m/s], "
+                 "ground speed [m/s]")
     for r in sorted((r for r in rows if np.isfinite(r.fuel_ratio)), key=lambda r: -r.fuel_ratio)[:worst]:
         where = ("(in the band at rest before the phase began)" if math.isnan(r.hover_error)
                  else f"{r.hover_error:+6.2f}  {r.hover_climb:+5.2f}  {r.hover_drift:4.2f}")
-        lines.append(f"  {r.index:4d}  {r.fuel_ratio:.4f}  {where}")
+        lines.append(f"  {r.index:4d}  {r.fuel_ratio:.4f} ({r.fuel_ratio_balanced:.4f})  {where}")
     return "\n".join(lines)
 
 
@@ -246,9 +255,11 @@ def main(argv: list[str] | None = None) -> int:
     if a.csv:
         with open(a.csv, "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(["index", "outcome", "fuel_ratio", "optimum", "hover_error", "hover_climb", "hover_drift", "band_time"])
+            w.writerow(["index", "outcome", "fuel_ratio", "optimum", "fuel_ratio_balanced", "hover_error", "hover_climb",
+                        "hover_drift", "band_time"])
             for r in rows:
-                w.writerow([r.index, r.outcome, r.fuel_ratio, r.optimum, r.hover_error, r.hover_climb, r.hover_drift, r.band_time])
+                w.writerow([r.index, r.outcome, r.fuel_ratio, r.optimum, r.fuel_ratio_balanced, r.hover_error, r.hover_climb,
+                            r.hover_drift, r.band_time])
     bad = 0
     if a.check:
         with Pool(a.workers) as pool:

@@ -63,3 +63,20 @@ def test_a_snapshot_from_older_code_gets_the_current_gains_and_keeps_its_state()
     tool._fill_missing(old, fresh)
     assert np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
     assert old.descent.drag_scale == 0.87 and old.descent.heading_W is fresh.descent.heading_W
+
+
+def test_a_frozen_record_from_older_code_gets_the_fields_added_since():
+    # A settings record (frozen dataclass) pickled before a field was added: the field is given,
+    # its other values kept (setattr on a frozen record would raise).
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class Settings:
+        a: float = 1.0
+        b: float = 2.0
+
+    tool = _tool()
+    old, fresh = Settings(a=5.0), Settings()
+    object.__delattr__(old, "b")  # as unpickled from a version without b
+    tool._fill_missing(old, fresh)
+    assert vars(old) == {"a": 5.0, "b": 2.0}

@@ -147,10 +147,10 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 row.hover_drift = float(np.linalg.norm(st.v_W - climb * up))
             if (row.outcome != "band" and abs(err) <= spec.end.hover_band
                     and math.sqrt(float(st.v_W @ st.v_W)) <= spec.end.hover_speed):
-                row.optimum = _optimum(sim, handover, h_after, os.path.join(folder, "optimum"))
-                row.fuel_ratio = (handover[2] - float(st.fuel)) / row.optimum
-                row.fuel_ratio_balanced = (handover[2] - float(st.fuel)) / _optimum(
-                    sim, handover, h_after, os.path.join(folder, "optimum"), balanced=True)
+                used, cache = handover[2] - float(st.fuel), os.path.join(folder, "optimum")
+                row.optimum = _optimum(sim, handover, h_after, cache)
+                row.fuel_ratio = used / row.optimum
+                row.fuel_ratio_balanced = used / _optimum(sim, handover, h_after, cache, balanced=True)
                 row.band_time, row.outcome = t - t_powered, "band"
                 if not hold:
                     return row

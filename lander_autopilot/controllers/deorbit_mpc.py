@@ -76,12 +76,9 @@ def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: f
     """
     L = local_frame(r_W)
     h = float(np.linalg.norm(r_W)) - c.MARS_RADIUS
-    if balanced:
-        axial, mdot = balanced_thrust(vehicle)
-        axial *= thrust_scale
-    else:
-        axial = vertical_thrust(vehicle) * thrust_scale
-        mdot = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)
+    axial, mdot = balanced_thrust(vehicle) if balanced else (
+        vertical_thrust(vehicle), sum(t.fuel_rate for t in vehicle.thrusters if t.enabled))
+    axial *= thrust_scale
     limits = DescentLimits(rho_max=axial, alpha=mdot / axial, dry_mass=vehicle.dry_mass, max_tilt=max_tilt)
     k = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA
     if chute_open:

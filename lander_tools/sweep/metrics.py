@@ -158,6 +158,7 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
     diag = s.diagnostics or {}
     powered = (mode_fuel["powered-descent"] - mode_fuel["hover"]
                if "powered-descent" in mode_fuel and "hover" in mode_fuel else math.nan)
+    to_band = mode_fuel.get("powered-descent", math.nan) - s.band_fuel  # [kg] the fuel the yardsticks measure
     metrics = {
         "touchdown_speed": s.touchdown_speed,
         "hover_error": hover,
@@ -175,9 +176,9 @@ def evaluate(samples: Samples, end: Any) -> tuple[str, bool, dict[str, float]]:
         "fuel_left": s.fuel_end,
         "powered_fuel": powered,
         "powered_optimum": s.powered_optimum,
-        "fuel_ratio": (mode_fuel.get("powered-descent", math.nan) - s.band_fuel) / s.powered_optimum,
+        "fuel_ratio": to_band / s.powered_optimum,
         "powered_optimum_balanced": s.powered_optimum_balanced,
-        "fuel_ratio_balanced": (mode_fuel.get("powered-descent", math.nan) - s.band_fuel) / s.powered_optimum_balanced,
+        "fuel_ratio_balanced": to_band / s.powered_optimum_balanced,
         "compute_time": s.compute_time,
         "mpc_solve_time_p99": float(diag.get("mpc_solve_time_p99", math.nan)),
         "mpc_solve_time_median": float(diag.get("mpc_solve_time_median", math.nan)),

@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         result = run_local(spec, workers=args.workers, progress=args.progress)
 
     rows = result.rows
-    sums = summary.summarise(rows, spec.metrics)
+    sums = summary.summarise(rows, spec.metrics, acceptance=spec.acceptance)
     labels = [c.label for c in spec.controllers]
     comps = [summary.compare(rows, labels[0], b, spec.metrics) for b in labels[1:]]
     text = summary.format_summary(sums, comps)

@@ -249,6 +249,36 @@ def metric_label(metric: str) -> str:
 
 
 @dataclass(frozen=True)
+class Bound:
+    """A per-flight bound on one metric: each flight's value must be ``<= max`` and ``>= min`` (None: no
+    bound that side); a flight where the metric is undefined (NaN: it never got there) is outside."""
+
+    metric: str
+    max: float | None = None
+    min: float | None = None
+
+    def holds(self, value: float) -> bool:
+        return (math.isfinite(value) and (self.max is None or value <= self.max)
+                and (self.min is None or value >= self.min))
+
+    def describe(self) -> str:
+        parts = ([f">= {self.min:g}"] if self.min is not None else []) + ([f"<= {self.max:g}"] if self.max is not None else [])
+        unit = metric_unit(self.metric)
+        return f"{self.metric} {' and '.join(parts)}" + ("" if unit == "-" else f" {unit}")
+
+
+@dataclass(frozen=True)
+class Acceptance:
+    """What a controller must achieve over the sweep (the ``acceptance`` key), checked and printed per
+    controller: the success rate, the lower bound of its Wilson interval (fractions in [0, 1]), and
+    per-flight bounds on metrics (every flight within, the ones outside named)."""
+
+    success_rate: float | None = None
+    success_wilson_low: float | None = None
+    bounds: tuple[Bound, ...] = ()
+
+
+@dataclass(frozen=True)
 class SweepSpec:
     """A validated sweep specification (see the module docstring for the YAML)."""
 
@@ -263,10 +293,12 @@ class SweepSpec:
     #: Controller update rate [Hz]; None: every simulation step, as the original program's autopilot.
     control_rate: float | None = None
     source: str = "<dict>"
+    acceptance: Acceptance = Acceptance()
 
 
 TOP_KEYS = (
     "name", "scene", "controllers", "controller", "flights", "seed", "control_rate", "end", "dispersions", "metrics",
+    "acceptance",
 )
 
 
@@ -452,6 +484,33 @@ def _end(ctx: _Ctx, value: Any) -> EndCondition:
     return end
 
 
+def _acceptance(ctx: _Ctx, value: Any, metrics: tuple[str, ...]) -> Acceptance:
+    data = _mapping(ctx, "acceptance", value or {})
+    _check_keys(ctx, "acceptance", data, ("success_rate", "success_wilson_low", "bounds"))
+    kw: dict[str, Any] = {}
+    for n in ("success_rate", "success_wilson_low"):
+        if n in data:
+            x = _number(ctx, f"acceptance.{n}", data[n], non_negative=True)
+            if x > 1.0:
+                raise ctx.fail(f"acceptance.{n}", f"a fraction in [0, 1] (0.95, not 95), got {data[n]!r}")
+            kw[n] = x
+    bounds = []
+    for metric, raw in _mapping(ctx, "acceptance.bounds", data.get("bounds", {}) or {}).items():
+        key = f"acceptance.bounds.{metric}"
+        if metric not in metrics:
+            raise ctx.fail(key, f"not among the sweep's metrics ({', '.join(metrics)}): add it to metrics")
+        b = _mapping(ctx, key, raw)
+        _check_keys(ctx, key, b, ("max", "min"))
+        if not b:
+            raise ctx.fail(key, "give max, min or both")
+        lo = _number(ctx, f"{key}.min", b["min"]) if "min" in b else None
+        hi = _number(ctx, f"{key}.max", b["max"]) if "max" in b else None
+        if lo is not None and hi is not None and lo > hi:
+            raise ctx.fail(key, f"min ({lo:g}) is above max ({hi:g})")
+        bounds.append(Bound(metric, max=hi, min=lo))
+    return Acceptance(**kw, bounds=tuple(bounds))
+
+
 def parse_spec(data: Any, source: str = "<dict>") -> SweepSpec:
     """Validate a YAML-shaped mapping into a :class:`SweepSpec`.
 
@@ -459,7 +518,8 @@ def parse_spec(data: Any, source: str = "<dict>") -> SweepSpec:
     ------
     SweepSpecError
         Naming ``source`` and the dotted key: unknown key, missing key, wrong type, a negative
-        count, or an impossible dispersion (negative std, min > max, probability outside [0, 1]).
+        count, an impossible dispersion (negative std, min > max, probability outside [0, 1]), or an
+        acceptance bound on a metric the sweep does not record.
     """
     ctx = _Ctx(source)
     data = _mapping(ctx, "<top level>", data)
@@ -495,6 +555,7 @@ def parse_spec(data: Any, source: str = "<dict>") -> SweepSpec:
             else _number(ctx, "control_rate", data["control_rate"], positive=True)
         ),
         source=source,
+        acceptance=_acceptance(ctx, data.get("acceptance"), tuple(metrics_raw)),
     )
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from lander_tools.sweep.spec import metric_label, metric_unit
+from lander_tools.sweep.spec import Acceptance, Bound, metric_label, metric_unit
 
 #: Percentiles reported for each metric.
 PERCENTILES = (5.0, 50.0, 95.0)
@@ -76,6 +76,17 @@ def metric_stats(values: Iterable[float]) -> MetricStats:
 
 
 @dataclass(frozen=True)
+class Check:
+    """One line of a controller's acceptance: what was asked, what was measured, whether it is met;
+    for a per-flight bound, the flights outside it (``(index, value)``, worst first)."""
+
+    what: str
+    measured: str
+    met: bool
+    outside: tuple[tuple[int, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class ControllerSummary:
     controller: str
     flights: int
@@ -83,10 +94,45 @@ class ControllerSummary:
     success_rate: Interval
     outcomes: dict[str, int]
     metrics: dict[str, MetricStats]
+    acceptance: tuple[Check, ...] = ()
 
 
-def summarise(rows: Sequence[dict[str, Any]], metrics: Sequence[str], confidence: float = 0.95) -> list[ControllerSummary]:
-    """One summary per controller label, in first-seen order."""
+#: Flights named per unmet bound (worst first); the rest are counted.
+NAMED_OUTSIDE = 8
+
+
+def _number(v: Any) -> float:
+    """A row's metric value as a float; missing (None, "") is undefined (NaN)."""
+    return math.nan if v is None or v == "" else float(v)
+
+
+def _excess(b: Bound, v: float) -> float:
+    """How far ``v`` is outside ``b`` (undefined: infinitely): flights outside a bound are listed worst first."""
+    if not math.isfinite(v):
+        return math.inf
+    return max(v - b.max if b.max is not None else -math.inf, b.min - v if b.min is not None else -math.inf)
+
+
+def check_acceptance(rows: Sequence[dict[str, Any]], acceptance: Acceptance, rate: Interval) -> tuple[Check, ...]:
+    """The checks of ``acceptance`` on one controller's ``rows`` (``rate``: its success rate)."""
+    checks = []
+    if acceptance.success_rate is not None:
+        checks.append(Check(f"success >= {100 * acceptance.success_rate:g} %", f"{100 * rate.estimate:.1f} %",
+                            rate.estimate >= acceptance.success_rate))
+    if acceptance.success_wilson_low is not None:
+        checks.append(Check(f"Wilson lower bound >= {100 * acceptance.success_wilson_low:g} %", f"{100 * rate.low:.1f} %",
+                            rate.low >= acceptance.success_wilson_low))
+    for b in acceptance.bounds:
+        values = [(int(r["index"]), _number(r.get(b.metric))) for r in rows]
+        outside = sorted(((i, v) for i, v in values if not b.holds(v)), key=lambda iv: (-_excess(b, iv[1]), iv[0]))
+        checks.append(Check(f"{b.describe()}, every flight", f"{len(values) - len(outside)}/{len(values)} flights",
+                            not outside, tuple(outside)))
+    return tuple(checks)
+
+
+def summarise(rows: Sequence[dict[str, Any]], metrics: Sequence[str], confidence: float = 0.95,
+              acceptance: Acceptance | None = None) -> list[ControllerSummary]:
+    """One summary per controller label, in first-seen order; with ``acceptance``, its checks each."""
     labels = list(dict.fromkeys(r["controller"] for r in rows))
     out = []
     for label in labels:
@@ -95,14 +141,16 @@ def summarise(rows: Sequence[dict[str, Any]], metrics: Sequence[str], confidence
         outcomes: dict[str, int] = {}
         for r in mine:
             outcomes[r["outcome"]] = outcomes.get(r["outcome"], 0) + 1
+        rate = wilson_interval(k, len(mine), confidence)
         out.append(
             ControllerSummary(
                 controller=label,
                 flights=len(mine),
                 successes=k,
-                success_rate=wilson_interval(k, len(mine), confidence),
+                success_rate=rate,
                 outcomes=dict(sorted(outcomes.items())),
                 metrics={m: metric_stats(r.get(m) for r in mine) for m in metrics},
+                acceptance=check_acceptance(mine, acceptance, rate) if acceptance is not None else (),
             )
         )
     return out
@@ -165,6 +213,16 @@ def format_summary(summaries: Sequence[ControllerSummary], comparisons: Sequence
         if ct is not None and ct.count:
             lines.append(f"  compute: {ct.mean * ct.count:.3g} s of CPU in the controller's updates over {ct.count} "
                          f"flights = {ct.mean:.3g} s a flight (mean; median {ct.percentiles['p50']:.3g} s)")
+        if s.acceptance:
+            met = sum(c.met for c in s.acceptance)
+            lines.append(f"  acceptance: {met} of {len(s.acceptance)} met")
+            for c in s.acceptance:
+                line = f"    {'met    ' if c.met else 'NOT MET'} {c.what}: {c.measured}"
+                if c.outside:
+                    named = ", ".join(f"#{i} {v:.4g}" for i, v in c.outside[:NAMED_OUTSIDE])
+                    more = len(c.outside) - NAMED_OUTSIDE
+                    line += f" (outside: {named}" + (f" and {more} more" if more > 0 else "") + ")"
+                lines.append(line)
     for c in comparisons:
         lines.append(
             f"compare {c.b} vs {c.a} on {c.pairs} shared cases: both ok {c.both_succeeded}, "

@@ -89,3 +89,26 @@ def test_sweep_without_out_writes_into_a_git_ignored_folder_of_the_working_direc
     probe = f"{DEFAULT_OUT}/{SMALL['name']}/summary.json"
     ignored = subprocess.run(["git", "check-ignore", "-q", probe], cwd=repo, check=False)
     assert ignored.returncode == 0, f"{probe} is not git-ignored in {repo}"
+
+
+def test_acceptance_is_checked_against_the_flown_rows_and_printed(tmp_path, capsys):
+    """The spec's acceptance, checked on what the sweep flew: a bound at the second least fuel of a
+    first run of the same flights, so the flights over it are those that run's table shows over it."""
+    small = {**SMALL, "flights": 4, "metrics": ["fuel_used", "hover_error"],
+             "end": {"duration": 4.0, "demand_step_time": 1.0, "hover_window": 1.0}}
+    out = tmp_path / "first"
+    assert main(["sweep", _write(tmp_path, small, "first.yaml"), "--workers", "1", "--out", str(out), "--no-plots"]) == 0
+    capsys.readouterr()
+    with open(out / "flights.csv") as f:
+        fuel = {int(r["index"]): float(r["fuel_used"]) for r in csv.DictReader(f)}
+    cut = sorted(fuel.values())[1]  # the second least: at least two flights within it
+    over = sorted((i for i, v in fuel.items() if v > cut), key=lambda i: -fuel[i])
+    assert over, "the four flights burn the same fuel: no bound between them"
+    spec = _write(tmp_path, {**small, "acceptance": {"success_rate": 0.0, "bounds": {"fuel_used": {"max": cut}}}})
+    assert main(["sweep", spec, "--workers", "1", "--out", str(tmp_path / "out"), "--no-plots"]) == 0
+    text = capsys.readouterr().out
+    assert "acceptance: 1 of 2 met" in text
+    assert f"NOT MET fuel_used <= {cut:g} kg, every flight: {4 - len(over)}/4 flights (outside: #{over[0]} " in text
+    checks = json.loads((tmp_path / "out" / "summary.json").read_text())["controllers"][0]["acceptance"]
+    assert [c["met"] for c in checks] == [True, False]
+    assert [i for i, _ in checks[1]["outside"]] == over

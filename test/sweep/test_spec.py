@@ -33,6 +33,16 @@ def test_good_spec_parses_into_typed_fields():
     assert spec.end.duration == 20.0
 
 
+def test_acceptance_parses_into_typed_bounds():
+    spec = parse_spec(_good(metrics=["fuel_used", "hover_error"], acceptance={
+        "success_rate": 0.95, "success_wilson_low": 0.9,
+        "bounds": {"fuel_used": {"max": 12.5}, "hover_error": {"min": -2.0, "max": 2.0}}}))
+    a = spec.acceptance
+    assert (a.success_rate, a.success_wilson_low) == (0.95, 0.9)
+    assert [(b.metric, b.min, b.max) for b in a.bounds] == [("fuel_used", None, 12.5), ("hover_error", -2.0, 2.0)]
+    assert parse_spec(_good()).acceptance.bounds == ()  # none asked: nothing checked
+
+
 def test_scenario_number_is_accepted_as_a_scene_alias():
     assert parse_spec(_good(scene=7)).scene == "7"
 
@@ -67,6 +77,16 @@ def test_scenario_number_is_accepted_as_a_scene_alias():
         (_good(controllers=[]), r"controllers: empty"),
         (_good(controllers=["combined", "combined"]), r"controllers: controller labels must differ"),
         (_good(controllers=[{"name": "combined", "gains": {}}]), r"controllers\[0\]\.gains: unknown key"),
+        (_good(acceptance={"success": 0.95}), r"acceptance\.success: unknown key"),
+        (_good(acceptance={"success_rate": 95}), r"acceptance\.success_rate: a fraction in \[0, 1\]"),
+        (_good(acceptance={"bounds": {"fuel_ratio": {"max": 1.05}}}),
+         r"acceptance\.bounds\.fuel_ratio: not among the sweep's metrics"),
+        (_good(metrics=["fuel_used"], acceptance={"bounds": {"fuel_used": {"below": 1.0}}}),
+         r"acceptance\.bounds\.fuel_used\.below: unknown key"),
+        (_good(metrics=["fuel_used"], acceptance={"bounds": {"fuel_used": {}}}),
+         r"acceptance\.bounds\.fuel_used: give max, min or both"),
+        (_good(metrics=["fuel_used"], acceptance={"bounds": {"fuel_used": {"min": 2.0, "max": 1.0}}}),
+         r"acceptance\.bounds\.fuel_used: min \(2\) is above max \(1\)"),
     ],
 )
 def test_bad_spec_raises_an_error_naming_the_key(data, key):

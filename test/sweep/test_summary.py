@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from lander_tools.sweep.summary import compare, metric_stats, summarise, wilson_interval
+from lander_tools.sweep.spec import Acceptance, Bound
+from lander_tools.sweep.summary import compare, format_summary, metric_stats, summarise, wilson_interval
 
 
 def test_wilson_interval_matches_its_closed_form():
@@ -58,3 +59,30 @@ def test_comparison_pairs_the_same_cases():
     # a fails on multiples of 4, b on multiples of 5: both fail on 0; a alone on 4, 8, 12, 16; b alone on 5, 10, 15.
     assert (c.pairs, c.both_failed, c.only_b, c.only_a, c.both_succeeded) == (20, 1, 4, 3, 12)
     assert c.median_difference["fuel_used"] == pytest.approx(1.5)
+
+
+def test_acceptance_counts_every_flight_against_each_bound_and_names_the_ones_outside():
+    rows = _rows()
+    rows[2]["fuel_used"] = math.nan  # a's flight 1 (rows alternate a, b); a flight that never got there is outside any bound
+    acc = Acceptance(success_rate=0.8, success_wilson_low=0.5, bounds=(Bound("fuel_used", max=17.0),))
+    a, b = summarise(rows, ["fuel_used"], acceptance=acc)
+    rate, wilson, fuel = a.acceptance
+    # a: 15 of 20 succeed (75 % < 80 %); Wilson's lower bound for 15/20 is 53.1 % (>= 50 %)
+    assert (rate.met, rate.measured) == (False, "75.0 %")
+    assert wilson.met and wilson.measured == f"{100 * wilson_interval(15, 20).low:.1f} %"
+    # a's fuel_used is the index: 18 and 19 are over 17, and flight 1 has none
+    assert not fuel.met and fuel.measured == "17/20 flights"
+    assert [i for i, _ in fuel.outside] == [1, 19, 18]  # undefined first, then the worst
+    # b's is the index + 1.5: 16, 17, 18, 19 over (1 is NaN in a's row only)
+    assert [i for i, _ in b.acceptance[2].outside] == [19, 18, 17, 16]
+    text = format_summary([a, b])
+    assert "acceptance: 1 of 3 met" in text
+    assert "NOT MET fuel_used <= 17 kg, every flight: 17/20 flights (outside: #1 nan, #19 19, #18 18)" in text
+    assert "met     Wilson lower bound >= 50 %" in text
+
+
+def test_acceptance_met_when_every_flight_is_within():
+    acc = Acceptance(bounds=(Bound("fuel_used", min=0.0, max=100.0),))
+    (a, _b) = summarise(_rows(), ["fuel_used"], acceptance=acc)
+    assert [c.met for c in a.acceptance] == [True] and a.acceptance[0].outside == ()
+    assert summarise(_rows(), ["fuel_used"])[0].acceptance == ()  # none asked

@@ -57,7 +57,7 @@ from lander_tools.sweep.flight import (
     nominal_scene,
     powered_optimum,
 )
-from lander_tools.sweep.metrics import HoverHold, altitude_and_tilt
+from lander_tools.sweep.metrics import BandSample, HoverHold, altitude_and_tilt, band_entry_fuel
 from lander_tools.sweep.spec import SweepSpec, load_spec
 
 BEFORE_BRAKING = ("entry", "parachute")  # phases a snapshot may be taken in
@@ -73,6 +73,9 @@ class Replayed:
     fuel_ratio: float = math.nan  # fuel from the powered descent's start to the band at rest / the optimum
     optimum: float = math.nan  # [kg] minimum fuel from the handover state (powered_optimum)
     fuel_ratio_balanced: float = math.nan  # the same fuel over the optimum at the thrust with no torque
+    #: fuel_ratio with the fuel at the band's entry found within its control period (band_entry_fuel):
+    #: a diagnostic, lenient against an optimum at rest at the demand (module docstring of metrics)
+    fuel_ratio_entry: float = math.nan
     hover_error: float = math.nan  # [m] altitude error where the `hover` phase began
     hover_climb: float = math.nan  # [m/s] climb rate there
     hover_drift: float = math.nan  # [m/s] ground speed there
@@ -131,6 +134,7 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
     t_powered = math.nan
     row = Replayed(index, "timeout")
     held = HoverHold(spec.end.hover_hold, spec.end.hover_band, spec.end.hover_speed)
+    band_before: BandSample | None = None  # the control instant before, from the handover on
     for k in range(k0, n_ctrl + 1):
         st = sim.state()
         t = k * period
@@ -145,15 +149,19 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 climb = float(st.v_W @ up)
                 row.hover_error, row.hover_climb = err, climb
                 row.hover_drift = float(np.linalg.norm(st.v_W - climb * up))
-            if (row.outcome != "band" and abs(err) <= spec.end.hover_band
-                    and math.sqrt(float(st.v_W @ st.v_W)) <= spec.end.hover_speed):
-                used, cache = handover[2] - float(st.fuel), os.path.join(folder, "optimum")
+            now = BandSample(err, math.sqrt(float(st.v_W @ st.v_W)), float(st.fuel))
+            if row.outcome != "band" and now.within(spec.end.hover_band, spec.end.hover_speed):
+                cache = os.path.join(folder, "optimum")
+                used = handover[2] - now.fuel  # at the control instant, as the sweep's fuel_ratio
                 row.optimum = _optimum(sim, handover, h_after, cache)
                 row.fuel_ratio = used / row.optimum
+                entry = band_entry_fuel(band_before, now, spec.end.hover_band, spec.end.hover_speed)
+                row.fuel_ratio_entry = (handover[2] - entry) / row.optimum
                 row.fuel_ratio_balanced = used / _optimum(sim, handover, h_after, cache, balanced=True)
                 row.band_time, row.outcome = t - t_powered, "band"
                 if not hold:
                     return row
+            band_before = now
         if _phase_name(sim) != "FLYING":
             row.outcome = "down"
             return row
@@ -170,6 +178,7 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 row.outcome = "no snapshot"  # braking began above the snapshot altitude
                 return row
             handover, t_powered = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), _chute_open(sim)), t
+            band_before = BandSample(err, math.sqrt(float(st.v_W @ st.v_W)), float(st.fuel))
         _act_on_requests(sim, out)
         sim.set_throttles(out.throttles)
         sim.step(n_sub)
@@ -207,7 +216,7 @@ def _check(args: tuple[str, str, int]) -> tuple[int, float]:
 def summary(rows: list[Replayed], worst: int) -> str:
     outcomes = {o: sum(r.outcome == o for r in rows) for o in sorted({r.outcome for r in rows})}
     lines = [f"{len(rows)} flights: " + ", ".join(f"{n} {o}" for o, n in outcomes.items())]
-    for name in ("fuel_ratio", "fuel_ratio_balanced"):
+    for name in ("fuel_ratio", "fuel_ratio_balanced", "fuel_ratio_entry"):
         ratios = np.array([getattr(r, name) for r in rows])
         ok = np.isfinite(ratios)
         if ok.any():
@@ -256,10 +265,10 @@ def main(argv: list[str] | None = None) -> int:
         with open(a.csv, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["index", "outcome", "fuel_ratio", "optimum", "fuel_ratio_balanced", "hover_error", "hover_climb",
-                        "hover_drift", "band_time"])
+                        "hover_drift", "band_time", "fuel_ratio_entry"])
             for r in rows:
                 w.writerow([r.index, r.outcome, r.fuel_ratio, r.optimum, r.fuel_ratio_balanced, r.hover_error, r.hover_climb,
-                            r.hover_drift, r.band_time])
+                            r.hover_drift, r.band_time, r.fuel_ratio_entry])
     bad = 0
     if a.check:
         with Pool(a.workers) as pool:

@@ -51,6 +51,9 @@ ATTITUDE_LAG = 2.0 / abs(MPC_ATTITUDE_POLE)
 #: The collective (of the axial thrust) above which the QP's braking has begun: from then on its thrust
 #: is capped to what stops the fall within a period (:meth:`DeorbitMpcController._stop_within_period`)
 BRAKING_COLLECTIVE = 0.5
+#: Before the braking, while the QP asks for less than this collective, the lander coasts under the
+#: canopy: no thrust, the thrust axis along the airflow (:meth:`DeorbitMpcController._coast_along_air`)
+COAST_COLLECTIVE = 0.2
 
 
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
@@ -219,16 +222,34 @@ class DeorbitMpcController(DeorbitController):
         self.thrust_L = T_L  # the QP's thrust this period, capped [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
         direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
-        diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
-        top = float(diff.max())
         axial = self.axial * self.thrust_calibration.scale  # the axial thrust the burn measured
         collective = mag / axial
-        if t > self._t_last:
+        coast = not self.braking_begun and collective < COAST_COLLECTIVE and self._chute_open
+        if coast:
+            direction_W, collective = self._coast_along_air(state), 0.0
+        diff = self.mpc_attitude.command_toward(thrust_axis_attitude(state.q, direction_W), state)
+        top = float(diff.max())
+        if t > self._t_last and not coast:  # the headroom is learnt where the collective is flown
             self.headroom.update(top, collective > 1.0 - top, t - self._t_last)
         self._t_last = t
         self.braking_begun = self.braking_begun or collective > BRAKING_COLLECTIVE
         u = saturate(mix_with_attitude_priority(collective, diff))
         return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value, requests=out.requests)
+
+    def _coast_along_air(self, state: StateView) -> np.ndarray:
+        """The thrust axis to hold [unit, world] while the QP, before its braking, asks for little
+        thrust (under ``COAST_COLLECTIVE``): against the velocity through the air fitted under the
+        chute (:meth:`.deorbit.DeorbitController._fit_air`; still air without a fit), where the
+        canopy's torque points the body, with no thrust. Flying the QP's small thrust along its own
+        direction held the axis off the airflow against the canopy: the attitude law's differential
+        burnt 0.05-0.15 kg over the coast, and the ~1 s the axis then took to turn onto the braking's
+        direction was already in the QP's lag model. Replayed from the sweeps' snapshots (stop 38, the
+        fuel read at the first control instant in the band, as the stops before): within 1.05 x
+        198 -> 199 of 200 (scenario 0's orbit) and 195 -> 197 (200 km), mean 1.0234 -> 1.0227 and
+        1.0261 -> 1.0259 (docs/deorbit.md, "The MPC's coast (stop 38)")."""
+        wind_W = self.air.wind_W if self.air is not None else np.zeros(3)
+        air_W = state.v_W - wind_W
+        return -air_W / max(float(np.linalg.norm(air_W)), 1e-9)
 
     def _stop_within_period(self, T_L: np.ndarray, mass: float, h: float, v_L: np.ndarray, axis_up: float,
                             r_W: np.ndarray) -> np.ndarray:

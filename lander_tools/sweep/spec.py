@@ -215,7 +215,8 @@ METRICS: dict[str, str] = {
                                 "(design.altitude.balanced_thrust: less than every thruster flat out when their "
                                 "thrust or cant is off) [kg] (core-only; NaN without both modes)",
     "fuel_ratio_balanced": "fuel_ratio over powered_optimum_balanced: against the least fuel the rigid vehicle can "
-                           "reach [x optimum] (core-only; NaN without both)",
+                           "reach with no other torque (the canopy's can beat it) [x optimum] (core-only; NaN "
+                           "without both)",
     "compute_time": "CPU time in the controller's update calls over the flight, time.process_time [s] "
                     "(not deterministic; NaN on the batched path)",
     "mpc_solve_time_p99": "99th percentile of the MPC's solve times, from controller.diagnostics() [s] "

@@ -317,6 +317,7 @@ class PoweredEnd(NamedTuple):
     ratio: float  # fuel from the powered descent's start to the first instant within the sweep's band at its speed, over the optimum
     fall_end: float  # [m] the altitude error where the fall first stopped
     drift: float  # [m/s] the ground speed as the `hover` phase began
+    coast_fuel: float  # [kg] fuel from the powered descent's start to the MPC's braking (NaN: scheduled law)
 
 
 def _powered_end(case_index: int, controller_index: int, spec_path: Path = SPEC, **params: object) -> PoweredEnd:
@@ -326,12 +327,14 @@ def _powered_end(case_index: int, controller_index: int, spec_path: Path = SPEC,
 
     spec = load_spec(spec_path)
     handover = None
-    stopped, climb_max, fall_end, drift = False, 0.0, math.nan, math.nan
+    stopped, climb_max, fall_end, drift, coast_fuel = False, 0.0, math.nan, math.nan, math.nan
     for s, ctrl, sim in _flown(case_index, controller_index, spec_path, **params):
         r = float(np.linalg.norm(s.r_W))
         error, climb = r - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / r
         if handover is None and ctrl.phase is Phase.POWERED:
             handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), _chute_open(sim))
+        if handover is not None and math.isnan(coast_fuel) and getattr(ctrl, "braking_begun", False):
+            coast_fuel = handover[2] - float(s.fuel)
         if handover is not None and math.isnan(fall_end) and climb >= 0.0:
             fall_end = error
         if math.isnan(drift) and ctrl.phase is Phase.HOVER:
@@ -342,7 +345,7 @@ def _powered_end(case_index: int, controller_index: int, spec_path: Path = SPEC,
         at_rest = float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed
         if handover is not None and abs(error) <= spec.end.hover_band and at_rest:
             ratio = (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
-            return PoweredEnd(climb_max, ratio, fall_end, drift)
+            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel)
     raise AssertionError("never within the band at its speed")
 
 
@@ -353,10 +356,14 @@ def test_mpc_last_braking_period_stops_the_fall_not_into_a_climb(monkeypatch):
     flown out: 1.147 x the optimum. Capped so that it cannot reverse the fall
     within the period (``DeorbitMpcController._stop_within_period``), the lander never climbs
     after the fall's end in the powered descent: 1.029 x. Both flights plan to the demand itself
-    (``target_above`` 0, as when the cap was added): planned 1 m over it (the default since stop 34)
-    this case stops without the overshoot even uncapped (1.0216 x either way)."""
+    (``target_above`` 0) and fly the QP's thrust from the handover on (``COAST_COLLECTIVE`` 0), as
+    when the cap was added: planned 1 m over the demand (the default since stop 34), or coasting
+    along the airflow until the braking (since stop 38), this case stops without the overshoot
+    even uncapped."""
+    from lander_autopilot.controllers import deorbit_mpc
     from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
 
+    monkeypatch.setattr(deorbit_mpc, "COAST_COLLECTIVE", 0.0)
     speed = load_spec(SPEC_0).end.hover_speed
     climb, ratio, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0)
     monkeypatch.setattr(DeorbitMpcController, "_stop_within_period", lambda self, T_L, *args: T_L)
@@ -371,14 +378,34 @@ def test_mpc_last_braking_period_stops_the_fall_not_into_a_climb(monkeypatch):
 def test_mpc_plans_to_rest_over_the_demand_so_a_plan_that_falls_behind_stops_in_the_band():
     """Scenario 0's sweep, case 78: its thrusters' own torque takes ~5 % of the collective, learnt
     only as the braking binds, and the plan falls behind. Planned to the demand itself, the fall
-    stopped 2.68 m under it, outside the 2 m band, and the hover law's climb back into the band
-    cost 0.15 of the optimum (1.199 x). Planned to rest ``target_above`` (1 m) over the demand, the
-    same shortfall stops in the band (1.051 x; docs/deorbit.md, "The MPC's target (stop 34)")."""
+    stopped 2.6 m under it, outside the 2 m band, and the hover law's climb back into the band
+    cost 0.14 of the optimum (1.193 x). Planned to rest ``target_above`` (1 m) over the demand, the
+    same shortfall stops in the band (1.051 x; docs/deorbit.md, "The MPC's target (stop 34)"; at
+    stop 34, with the QP's thrust flown over the coast, 2.68 m, 1.199 and 1.051 x)."""
     band = load_spec(SPEC_0).end.hover_band
-    _, ratio_before, stop_before, _ = _powered_end(78, 1, SPEC_0, target_above=0.0)
-    _, ratio, stop, _ = _powered_end(78, 1, SPEC_0)
+    _, ratio_before, stop_before, *_ = _powered_end(78, 1, SPEC_0, target_above=0.0)
+    _, ratio, stop, *_ = _powered_end(78, 1, SPEC_0)
     print(f"the fall stopped at {stop_before:+.2f} -> {stop:+.2f} m from the demand; "
           f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
     assert stop_before < -band < stop < 0.0  # short of the target either way: the plan fell behind
     # the climb back into the band, ~2 s of hover thrust, is what the target over the demand saves
     assert ratio < ratio_before - 0.1
+
+
+@pytest.mark.slow  # two MPC flights from 200 km and their optimum, ~50 s
+def test_mpc_coasts_along_the_airflow_until_its_braking(monkeypatch):
+    """The 200 km sweep's case 88 (5.6 m/s of wind): the MPC hands over ~2 s before its braking, and
+    flying the QP's small thrust along the QP's own direction held the thrust axis off the airflow
+    against the canopy's torque; the attitude law's differential burnt fuel over the whole coast.
+    Coasting along the air fitted under the chute, with no thrust, until the QP asks for
+    ``COAST_COLLECTIVE`` (``DeorbitMpcController._coast_along_air``), the coast burns a fraction of it
+    and the whole descent less (docs/deorbit.md, "The MPC's coast (stop 38)")."""
+    from lander_autopilot.controllers import deorbit_mpc
+
+    end = _powered_end(88, 1)
+    monkeypatch.setattr(deorbit_mpc, "COAST_COLLECTIVE", 0.0)  # the QP's thrust flown from the handover
+    before = _powered_end(88, 1)
+    print(f"fuel to the braking {before.coast_fuel:.3f} -> {end.coast_fuel:.3f} kg; "
+          f"to the band at rest {before.ratio:.4f} -> {end.ratio:.4f} x the optimum")
+    assert end.coast_fuel < 0.5 * before.coast_fuel
+    assert end.ratio < before.ratio - 0.01

@@ -26,7 +26,7 @@ from lander_tools.sweep.case_scene import (
     write_case_scene,
 )
 from lander_tools.sweep.dispersion import FlightCase, draw_case
-from lander_tools.sweep.metrics import HoverHold, altitude_and_tilt
+from lander_tools.sweep.metrics import BandSample, HoverHold, altitude_and_tilt, band_entry_fuel
 from lander_tools.sweep.ros_path import compare_rows
 from lander_tools.sweep.spec import NONDETERMINISTIC_METRICS, SweepSpecError, parse_spec
 from lander_tools.sweep.summary import format_summary, summarise
@@ -429,3 +429,31 @@ def test_the_fuel_ratio_is_measured_against_the_optimum_from_the_flights_own_han
     row = {"index": 0, "controller": "x", "outcome": "hovered", "powered_fuel": 12.0, "powered_optimum": 11.5,
            "fuel_ratio": 12.0 / 11.5}
     assert compare_rows(row, {**row, "powered_optimum": math.nan, "fuel_ratio": math.nan}, spec.metrics) == []
+
+
+def test_the_band_is_entered_within_the_period_not_at_its_end():
+    """The fuel at the band's entry: the throttles are held over a period, so the fuel is linear in
+    time between two control instants; the crossing is the later of the altitude's (linear) and the
+    speed's (its magnitude taken as linear: at or after the true crossing), never before the true one."""
+    band, limit = 2.0, 0.2
+    # the speed alone crosses, 4/5 of the way: 0.6 -> 0.1 m/s, 10.0 -> 9.8 kg
+    assert band_entry_fuel(BandSample(0.5, 0.6, 10.0), BandSample(0.4, 0.1, 9.8), band, limit) == pytest.approx(9.84)
+    # the altitude alone, from above and from below (half way to the band's edge), and both: the later one
+    assert band_entry_fuel(BandSample(3.0, 0.1, 10.0), BandSample(1.0, 0.1, 9.8), band, limit) == pytest.approx(9.9)
+    assert band_entry_fuel(BandSample(-2.5, 0.1, 10.0), BandSample(-1.5, 0.1, 9.8), band, limit) == pytest.approx(9.9)
+    assert band_entry_fuel(BandSample(3.0, 0.6, 10.0), BandSample(1.0, 0.1, 9.8), band, limit) == pytest.approx(9.84)
+    # no instant before (the first one looked at), or already in the band: the instant's own fuel
+    assert band_entry_fuel(None, BandSample(0.4, 0.1, 9.8), band, limit) == 9.8
+    # the speed's crossing taken on |v| linear is at or after the true one, along any linear velocity
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        v0, v1 = rng.normal(0.0, 1.0, 3), rng.normal(0.0, 0.1, 3)
+        v0 *= (0.3 + rng.random()) / np.linalg.norm(v0)
+        v1 *= limit * rng.random() / np.linalg.norm(v1)
+        s_lin = (band_entry_fuel(BandSample(0.0, float(np.linalg.norm(v0)), 1.0), BandSample(0.0, float(np.linalg.norm(v1)), 0.0),
+                                 band, limit))
+        s_lin = 1.0 - s_lin  # fuel 1 -> 0 over the period: the fraction of it
+        s = np.linspace(0.0, 1.0, 2001)
+        speed = np.linalg.norm(v0[None, :] + s[:, None] * (v1 - v0)[None, :], axis=1)
+        s_true = s[np.argmax(speed <= limit)]
+        assert s_true <= s_lin + 5e-4  # the grid's half step

@@ -24,7 +24,11 @@ fresh controller.
 
 Prints the fuel_ratio percentiles, how many flights are within 1.03 / 1.05 / 1.10 x the optimum
 and the worst flights (where the hover began: altitude error, climb rate, ground speed); ``--csv``
-writes one row a flight.
+writes one row a flight. Beside the sweep's ``fuel_ratio`` (the fuel read at the first control
+instant in the band, over the optimum at rest at the demand) and ``fuel_ratio_balanced``: the
+band's entry found within its period (``fuel_ratio_entry``, :func:`~lander_tools.sweep.metrics.band_entry_fuel`)
+and, with ``--like``, that entry over the optimum to the hover's own tolerance (``fuel_ratio_like``:
+the two ends alike; docs/deorbit.md, "The band's entry and the hover's tolerance").
 """
 from __future__ import annotations
 
@@ -76,6 +80,9 @@ class Replayed:
     #: fuel_ratio with the fuel at the band's entry found within its control period (band_entry_fuel):
     #: a diagnostic, lenient against an optimum at rest at the demand (module docstring of metrics)
     fuel_ratio_entry: float = math.nan
+    #: with --like: that entry's fuel over the optimum to the same tolerance (end.hover_band and
+    #: end.hover_speed): the two ends alike
+    fuel_ratio_like: float = math.nan
     hover_error: float = math.nan  # [m] altitude error where the `hover` phase began
     hover_climb: float = math.nan  # [m/s] climb rate there
     hover_drift: float = math.nan  # [m/s] ground speed there
@@ -104,16 +111,19 @@ def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
 
 
 def _optimum(sim: Simulation, handover: tuple[np.ndarray, np.ndarray, float, bool], altitude: float, cache: str,
-             balanced: bool = False) -> float:
+             balanced: bool = False, end: tuple[float, float] | None = None) -> float:
     """:func:`powered_optimum`, cached on disk by the handover state (a solve takes 1-4 s) in a folder per
-    altitude (and per thrust bound: ``balanced``, the thrust with no torque)."""
+    altitude (and per thrust bound: ``balanced``, the thrust with no torque; and per end: ``end`` =
+    (band [m], speed [m/s]) of the hover's tolerance, else at rest at the demand)."""
     key = hashlib.sha1(b"".join(np.asarray(x, float).tobytes() for x in handover[:3]) + bytes([handover[3]])).hexdigest()
-    cache = os.path.join(cache, f"{altitude!r}" + ("-balanced" if balanced else ""))
+    cache = os.path.join(cache, f"{altitude!r}" + ("-balanced" if balanced else "")
+                         + (f"-end{end[0]!r}-{end[1]!r}" if end is not None else ""))
     path = os.path.join(cache, key)
     if os.path.exists(path):
         with open(path) as f:
             return float(f.read())
-    value = powered_optimum(sim, handover, altitude, balanced=balanced)
+    band, speed = end if end is not None else (0.0, 0.0)
+    value = powered_optimum(sim, handover, altitude, balanced=balanced, end_band=band, end_speed=speed)
     os.makedirs(cache, exist_ok=True)
     with open(path, "w") as f:
         f.write(repr(value))
@@ -121,7 +131,7 @@ def _optimum(sim: Simulation, handover: tuple[np.ndarray, np.ndarray, float, boo
 
 
 def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folder: str,
-         snapshot_altitude: float | None, hold: bool = False) -> Replayed:
+         snapshot_altitude: float | None, hold: bool = False, like: bool = False) -> Replayed:
     """From control instant ``k0`` to the band at rest after the powered descent (fly_case's loop);
     with ``snapshot_altitude``, pickles ``(k, sim, ctrl)`` at the first instant under it; with
     ``hold``, on until the hover is held (:class:`HoverHold`, the sweep's success) or the flight ends."""
@@ -157,6 +167,9 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 row.fuel_ratio = used / row.optimum
                 entry = band_entry_fuel(band_before, now, spec.end.hover_band, spec.end.hover_speed)
                 row.fuel_ratio_entry = (handover[2] - entry) / row.optimum
+                if like:
+                    end = (spec.end.hover_band, spec.end.hover_speed)
+                    row.fuel_ratio_like = (handover[2] - entry) / _optimum(sim, handover, h_after, cache, end=end)
                 row.fuel_ratio_balanced = used / _optimum(sim, handover, h_after, cache, balanced=True)
                 row.band_time, row.outcome = t - t_powered, "band"
                 if not hold:
@@ -187,8 +200,8 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
     return row
 
 
-def _task(args: tuple[str, str, int, str, float | None, bool]) -> Replayed:
-    spec_path, label, index, folder, altitude, hold = args
+def _task(args: tuple[str, str, int, str, float | None, bool, bool]) -> Replayed:
+    spec_path, label, index, folder, altitude, hold, like = args
     spec = load_spec(spec_path)
     ci = [ch.label for ch in spec.controllers].index(label)
     scene0 = nominal_scene(spec)
@@ -196,14 +209,14 @@ def _task(args: tuple[str, str, int, str, float | None, bool]) -> Replayed:
     fresh.reset()
     if altitude is not None:  # make
         sim = Simulation(flown_scene(spec, draw_case(spec, index, scene0.vehicle.n_thrusters)))
-        return _fly(spec, sim, fresh, 0, index, folder, altitude, hold)
+        return _fly(spec, sim, fresh, 0, index, folder, altitude, hold, like)
     path = os.path.join(folder, f"{index}.pkl")
     if not os.path.exists(path):
         return Replayed(index, "no snapshot")
     with open(path, "rb") as f:
         k0, sim, ctrl = pickle.load(f)
     _fill_missing(ctrl, fresh)
-    return _fly(spec, sim, ctrl, k0, index, folder, None, hold)
+    return _fly(spec, sim, ctrl, k0, index, folder, None, hold, like)
 
 
 def _check(args: tuple[str, str, int]) -> tuple[int, float]:
@@ -216,7 +229,7 @@ def _check(args: tuple[str, str, int]) -> tuple[int, float]:
 def summary(rows: list[Replayed], worst: int) -> str:
     outcomes = {o: sum(r.outcome == o for r in rows) for o in sorted({r.outcome for r in rows})}
     lines = [f"{len(rows)} flights: " + ", ".join(f"{n} {o}" for o, n in outcomes.items())]
-    for name in ("fuel_ratio", "fuel_ratio_balanced", "fuel_ratio_entry"):
+    for name in ("fuel_ratio", "fuel_ratio_balanced", "fuel_ratio_entry", "fuel_ratio_like"):
         ratios = np.array([getattr(r, name) for r in rows])
         ok = np.isfinite(ratios)
         if ok.any():
@@ -245,6 +258,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--worst", type=int, default=10, help="worst flights listed")
     ap.add_argument("--hold", action="store_true", help="fly on until the hover is held (the sweep's success)")
+    ap.add_argument("--like", action="store_true",
+                    help="also fuel_ratio_like: the band's entry over the optimum to the hover's tolerance "
+                         "(one more convex solve a flight, cached)")
     ap.add_argument("--check", type=int, default=0, metavar="K", help="re-fly the first K cases whole (fly_case) and compare")
     ap.add_argument("--csv", help="write one row a flight here")
     a = ap.parse_args(argv)
@@ -258,17 +274,17 @@ def main(argv: list[str] | None = None) -> int:
     altitude = a.altitude if a.mode == "make" else None
     t0 = time.perf_counter()
     with Pool(a.workers) as pool:
-        rows = pool.map(_task, [(a.spec, a.controller, i, folder, altitude, a.hold) for i in cases], chunksize=1)
+        rows = pool.map(_task, [(a.spec, a.controller, i, folder, altitude, a.hold, a.like) for i in cases], chunksize=1)
     print(f"{a.mode}: {spec.name} / {a.controller}, {time.perf_counter() - t0:.0f} s wall on {a.workers} workers")
     print(summary(rows, a.worst))
     if a.csv:
         with open(a.csv, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["index", "outcome", "fuel_ratio", "optimum", "fuel_ratio_balanced", "hover_error", "hover_climb",
-                        "hover_drift", "band_time", "fuel_ratio_entry"])
+                        "hover_drift", "band_time", "fuel_ratio_entry", "fuel_ratio_like"])
             for r in rows:
                 w.writerow([r.index, r.outcome, r.fuel_ratio, r.optimum, r.fuel_ratio_balanced, r.hover_error, r.hover_climb,
-                            r.hover_drift, r.band_time, r.fuel_ratio_entry])
+                            r.hover_drift, r.band_time, r.fuel_ratio_entry, r.fuel_ratio_like])
     bad = 0
     if a.check:
         with Pool(a.workers) as pool:

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,10 @@ class DescentProblem:
     Local frame: origin on the surface below the target, z up (altitude), x and y horizontal.
     With ``free_horizontal`` only the target's altitude binds: the descent ends at rest at that
     altitude wherever it is cheapest (a hover, not a landing spot); the glide slope then has no apex
-    and is not applied.
+    and is not applied. ``end_band`` [m] and ``end_speed`` [m/s] relax the end to a tolerance: within
+    ``end_band`` of the target's altitude and under ``end_speed`` (both convex; 0: exactly there, at
+    rest), the end of a flight judged by a hover band (docs/deorbit.md, "The band's entry and the
+    hover's tolerance").
     """
 
     position_L: np.ndarray
@@ -129,6 +133,8 @@ class DescentProblem:
     target_L: np.ndarray = field(default_factory=lambda: np.zeros(3))
     free_horizontal: bool = False
     drag: DragModel | None = None
+    end_band: float = 0.0
+    end_speed: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("position_L", "velocity_L", "target_L"):
@@ -140,6 +146,9 @@ class DescentProblem:
             raise GuidanceError(f"mass {self.mass} kg must exceed the dry mass {self.limits.dry_mass} kg")
         if not (self.gravity > 0):
             raise GuidanceError(f"gravity must be positive (m/s^2), got {self.gravity}")
+        for name in ("end_band", "end_speed"):
+            if not (getattr(self, name) >= 0):
+                raise GuidanceError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)
@@ -207,8 +216,7 @@ class _FixedTimeProgram:
             cons.append(cp.abs(v - self.v_ref) <= self.trust)
         cons += [
             r[0] == problem.position_L, v[0] == problem.velocity_L, z[0] == math.log(problem.mass),
-            (r[N, 2] == problem.target_L[2]) if problem.free_horizontal else (r[N] == problem.target_L),
-            v[N] == 0,
+            *self._end(problem, r[N], v[N]),
             r[1:] == r[:-1] + self.dt * v[:-1] + self.sixth_dt2 * (2 * acc[:-1] + acc[1:])
             + self.half_dt2 * (ones @ g[None, :]),
             v[1:] == v[:-1] + self.dt / 2 * (acc[:-1] + acc[1:]) + self.dt * (ones @ g[None, :]),
@@ -238,6 +246,16 @@ class _FixedTimeProgram:
             # instead of wandering over a flat face of optima (a coast's timing, a hover's place).
             objective = objective - 1e-8 * self.dt * cp.sum_squares(u)
         self.program = cp.Problem(cp.Maximize(objective), cons)
+
+    @staticmethod
+    def _end(problem: DescentProblem, r_end: Any, v_end: Any) -> list:
+        """The end's constraints: at the target (its altitude only with ``free_horizontal``) at rest,
+        or within ``end_band`` of its altitude under ``end_speed``."""
+        import cvxpy as cp
+
+        z = r_end[2] == problem.target_L[2] if problem.end_band == 0 else cp.abs(r_end[2] - problem.target_L[2]) <= problem.end_band
+        cons = [z] if problem.free_horizontal else [z, r_end[:2] == problem.target_L[:2]]
+        return cons + [v_end == 0 if problem.end_speed == 0 else cp.norm(v_end) <= problem.end_speed]
 
     def solve(self, final_time: float, passes: int | None = None) -> DescentSolution | None:
         """The optimum for ``final_time`` s, or None when infeasible. ``passes`` bounds the

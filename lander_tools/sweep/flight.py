@@ -20,6 +20,7 @@ function of ``(seed, index)`` (:data:`~lander_tools.sweep.spec.NONDETERMINISTIC_
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import traceback
@@ -254,13 +255,15 @@ def _chute_open(sim: Any) -> bool:
 
 
 def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float,
-                    balanced: bool = False) -> float:
+                    balanced: bool = False, end_band: float = 0.0, end_speed: float = 0.0) -> float:
     """The issue-14 yardstick of a flight: the minimum fuel [kg] from its handover state (world frame
     ``r_W``, ``v_W``, fuel, chute open) to rest at ``demand_altitude`` [m], with the flown vehicle (its
     thrust, mass and cant dispersions), the flown atmosphere's surface density and the scene's mean
     wind (the gusts are not modelled: they average out over the burn). 30 nodes, final time to 1e-3 s (the fuel agrees with 60 nodes to ~1e-6 from the
     common handover case, bench/deorbit_fuel.py uses 60). NaN when the convex problem is infeasible.
-    ``balanced``: the thrust bound the flown thrusters give with no torque (``handover_problem``'s)."""
+    ``balanced``: the thrust bound the flown thrusters give with no torque (``handover_problem``'s).
+    ``end_band`` [m], ``end_speed`` [m/s]: the end anywhere within that band of the demand under that
+    speed instead of at rest at it (``DescentProblem``'s)."""
     from lander_autopilot.controllers.deorbit_mpc import handover_problem
     from lander_autopilot.guidance.fuel_optimal import GuidanceError, solve
 
@@ -271,6 +274,8 @@ def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, boo
         kwargs["surface_density"] = float(atmosphere.surface_density)
     problem, _frame = handover_problem(sim.scene.vehicle, r_W, v_W, fuel, demand_altitude, chute_open=chute,
                                        balanced=balanced, **kwargs)
+    if end_band or end_speed:
+        problem = dataclasses.replace(problem, end_band=end_band, end_speed=end_speed)
     try:
         return float(solve(problem, steps=30, t_tol=1e-3).fuel)
     except GuidanceError:

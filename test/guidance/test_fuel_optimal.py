@@ -1,6 +1,7 @@
 """The convex fuel-optimal descent (lossless convexification) against closed forms and its own constraints."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -42,6 +43,24 @@ def test_vertical_descent_matches_the_bang_bang_optimum(h, v):
     # The thrust is bang-bang: off, then flat out (every step but the one holding the switch).
     frac = fine.thrust_magnitude / LIMITS.rho_max
     assert np.sum((frac > 1e-2) & (frac < 1 - 1e-2)) <= 2
+
+
+def test_an_end_tolerance_is_the_optimum_to_its_nearest_edge():
+    """``end_band``: a fall from above ends at rest on the band's top edge, the closed-form bang-bang
+    to that altitude (to the discretisation's 1e-3); ``end_speed``: it ends at the target still falling at
+    that speed, for less fuel; 0 for both is the problem at rest on the target."""
+    h, v, band, speed = 500.0, -40.0, 2.0, 0.2
+    exact = solve(_vertical(h, v), steps=60)
+    edge_fuel, edge_tf = vertical_bang_bang(h - band, v, 180.0, SURFACE_GRAVITY, LIMITS)
+    banded = solve(dataclasses.replace(_vertical(h, v), end_band=band), steps=60)
+    assert banded.fuel == pytest.approx(edge_fuel, rel=1e-3) and banded.fuel < exact.fuel
+    # an inequality the interior-point solver meets from inside, to ~1e-5
+    assert banded.position_L[-1, 2] == pytest.approx(band, abs=1e-4) and np.allclose(banded.velocity_L[-1], 0.0, atol=1e-6)
+    slow = solve(dataclasses.replace(_vertical(h, v), end_speed=speed), steps=60)
+    assert slow.velocity_L[-1, 2] == pytest.approx(-speed, abs=1e-4) and slow.fuel < exact.fuel
+    assert solve(dataclasses.replace(_vertical(h, v), end_band=0.0, end_speed=0.0), steps=60).fuel == exact.fuel
+    with pytest.raises(GuidanceError, match="end_band"):
+        dataclasses.replace(_vertical(h, v), end_band=-1.0)
 
 
 def test_solution_keeps_every_constraint_and_ends_at_rest_on_target():

@@ -99,12 +99,12 @@ def band_entry_fuel(before: BandSample | None, at: BandSample, band: float, spee
     before it (None: ``at`` is the first instant looked at, and its fuel is the answer).
 
     ``fuel_ratio`` reads the fuel at ``at`` itself; ``bench/deorbit_replay.py`` prints this one beside
-    it (``fuel_ratio_entry``). Read at the instant, the fuel is over the entry's by what burnt in the
-    rest of the period (0 to 1.2 %, mean 0.5 % of the optimum over the 200 km sweep's MPC flights); the
-    other error is the end's definition: the flight is in the hover from 2 m and 0.2 m/s, the optimum
-    at rest at the demand, and an optimum to the same tolerance is 0.5-0.8 % less (four cases, stop
-    38). The two offset each other in the mean; the entry without the like yardstick would flatter
-    every law by ~0.5 %, so the sweep keeps the instant (docs/deorbit.md, "The band's entry (stop 38)").
+    it (``fuel_ratio_entry``), and with ``--like`` this one over the optimum to the hover's tolerance
+    (``fuel_ratio_like``). Read at the instant, the fuel counts the rest of the period's burn (0 to
+    1.3 %, mean 0.5 % of the optimum); against that, the optimum at rest at the demand needs 0.5-0.9 %
+    more than one ending within the band's tolerance. The two offset: over the sweeps' 800 flights the
+    like-for-like ratio is 0.1-0.2 % over ``fuel_ratio`` in the mean, -0.4 to +0.8 % per flight
+    (docs/deorbit.md, "The band's entry and the hover's tolerance (stop 38)").
 
     The throttles are held over the period, so the fuel falls linearly between the two instants; the
     altitude error is taken as linear too, and so is the speed's magnitude, which puts the speed's

@@ -153,13 +153,13 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
             return row
         h, _tilt = altitude_and_tilt(st.r_W, st.q)
         err = h - (h_after if t >= t_change else h_before)
+        now = BandSample(err, math.sqrt(float(st.v_W @ st.v_W)), float(st.fuel))
         if handover is not None:
             if math.isnan(row.hover_error) and ctrl.phase.value == "hover":
                 up = st.r_W / float(np.linalg.norm(st.r_W))
                 climb = float(st.v_W @ up)
                 row.hover_error, row.hover_climb = err, climb
                 row.hover_drift = float(np.linalg.norm(st.v_W - climb * up))
-            now = BandSample(err, math.sqrt(float(st.v_W @ st.v_W)), float(st.fuel))
             if row.outcome != "band" and now.within(spec.end.hover_band, spec.end.hover_speed):
                 cache = os.path.join(folder, "optimum")
                 used = handover[2] - now.fuel  # at the control instant, as the sweep's fuel_ratio
@@ -178,7 +178,7 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
         if _phase_name(sim) != "FLYING":
             row.outcome = "down"
             return row
-        if hold and held.update(t, err, math.sqrt(float(st.v_W @ st.v_W))):
+        if hold and held.update(t, err, now.speed):
             row.outcome = "held"
             return row
         if snapshot_altitude is not None and h < snapshot_altitude and ctrl.phase.value in BEFORE_BRAKING:
@@ -191,7 +191,7 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 row.outcome = "no snapshot"  # braking began above the snapshot altitude
                 return row
             handover, t_powered = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), _chute_open(sim)), t
-            band_before = BandSample(err, math.sqrt(float(st.v_W @ st.v_W)), float(st.fuel))
+            band_before = now
         _act_on_requests(sim, out)
         sim.set_throttles(out.throttles)
         sim.step(n_sub)

@@ -32,7 +32,7 @@ import numpy as np
 
 from lander_tools.sweep.case_scene import clear_caches, flown_scene, nominal_scene
 from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.metrics import HoverHold, Samples, altitude_and_tilt, evaluate
+from lander_tools.sweep.metrics import HoverHold, Samples, altitude_and_tilt, evaluate, in_hover_band
 from lander_tools.sweep.spec import SweepSpec
 
 __all__ = [
@@ -166,7 +166,7 @@ def fly_case(
         rates.append(math.sqrt(float(st.omega_B @ st.omega_B)))
         speeds.append(math.sqrt(float(st.v_W @ st.v_W)))
         if (handover is not None and math.isnan(band_fuel) and hold is not None
-                and abs(errs[-1]) <= spec.end.hover_band and speeds[-1] <= spec.end.hover_speed):
+                and in_hover_band(errs[-1], speeds[-1], spec.end.hover_band, spec.end.hover_speed)):
             band_fuel = float(st.fuel)
         phase = _phase_name(sim)
         if phase != "FLYING":

@@ -81,6 +81,12 @@ class Samples:
     band_fuel: float = math.nan
 
 
+def in_hover_band(altitude_error: float, speed: float, band: float, speed_limit: float) -> bool:
+    """In the hover: ``|altitude error| <= band`` [m] and ``speed <= speed_limit`` [m/s] (the hover-hold
+    criterion's instant, :class:`HoverHold`, and the fuel yardsticks' end, :func:`band_entry_fuel`)."""
+    return abs(altitude_error) <= band and speed <= speed_limit
+
+
 @dataclass(frozen=True)
 class BandSample:
     """One control instant as the band's entry sees it: altitude error [m], speed ``|v_W|`` [m/s], fuel [kg]."""
@@ -90,7 +96,7 @@ class BandSample:
     fuel: float
 
     def within(self, band: float, speed_limit: float) -> bool:
-        return abs(self.altitude_error) <= band and self.speed <= speed_limit
+        return in_hover_band(self.altitude_error, self.speed, band, speed_limit)
 
 
 def band_entry_fuel(before: BandSample | None, at: BandSample, band: float, speed_limit: float) -> float:
@@ -140,7 +146,7 @@ class HoverHold:
         """Feed the instant ``t`` [s]; True once (and from then on) the hover has been held."""
         if self.held:
             return True
-        if abs(altitude_error) <= self.band and speed <= self.speed_limit:
+        if in_hover_band(altitude_error, speed, self.band, self.speed_limit):
             if self.start is None:
                 self.start = t
             self.held = t - self.start >= self.hold - 1e-9

@@ -104,8 +104,9 @@ def test_mpc_planning_with_the_attitude_lag_brakes_the_drift_before_the_hover():
     drift_instant, fuel_instant = _fly_mpc_to_the_band(55, attitude_lag=0.0)
     drift_lag, fuel_lag = _fly_mpc_to_the_band(55)
     print(f"drift at the hover {drift_instant:.3f} -> {drift_lag:.3f} m/s, fuel to the band {fuel_instant:.3f} -> {fuel_lag:.3f} kg")
-    assert drift_instant > spec.end.hover_speed  # 0.93 m/s
-    assert drift_lag < spec.end.hover_speed  # 0.13 m/s: the hover begins within its own speed band
+    # measured at stop 39: 0.203 m/s, just over the hover's speed (0.93 when the lag was added)
+    assert drift_instant > spec.end.hover_speed
+    assert drift_lag < spec.end.hover_speed  # 0.055 m/s (0.13 then): the hover begins within its own speed band
     assert fuel_lag < fuel_instant
 
 

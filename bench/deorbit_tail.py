@@ -30,6 +30,7 @@ from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.deorbit import Phase
 from lander_sim.physics import constants as c
 from lander_tools.sweep.flight import flown_periods
+from lander_tools.sweep.metrics import in_hover_band
 from lander_tools.sweep.spec import load_spec
 
 DEMAND = Demand(altitude=500.0)
@@ -54,7 +55,7 @@ def replay(args: tuple[str, int, int]) -> tuple[int, dict[str, float] | None]:
                 row.update(wind=float(np.linalg.norm(sim.scene.wind_W)), hover_t=t - t0, error=h - DEMAND.altitude,
                            climb=hd, drift=float(np.linalg.norm(s.v_W - hd * up)), fuel_hover=fuel0 - s.fuel,
                            share=headroom.share if headroom is not None else math.nan)
-            if abs(h - DEMAND.altitude) <= band and float(np.linalg.norm(s.v_W)) <= speed:
+            if in_hover_band(h - DEMAND.altitude, float(np.linalg.norm(s.v_W)), band, speed):
                 row.update(band_t=t - t0, fuel_band=fuel0 - s.fuel)
                 return index, row
     return index, None

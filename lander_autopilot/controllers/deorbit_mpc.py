@@ -46,7 +46,14 @@ from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
 from .combined import CollectiveHeadroom, mix_with_attitude_priority
-from .deorbit import HOVER_ATTITUDE_POLES, AxisIntegral, DeorbitController, DescentToAltitude, Phase, thrust_axis_attitude
+from .deorbit import (
+    HOVER_ATTITUDE_POLES,
+    AxisIntegral,
+    DeorbitController,
+    DescentToAltitude,
+    Phase,
+    thrust_axis_attitude,
+)
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
 # s: the mean delay of that loop, p^2 / (s - p)^2, is 2 / |p|: the lag the QP plans the thrust axis with

@@ -142,7 +142,7 @@ class DeorbitMpcController(DeorbitController):
     target (stop 34)"). 1 m from stop 34 to 39; 1.5 since the braking flies the tilt it asks for
     (:meth:`_axis_flown_as_asked`), which leaves it less vertical thrust than the short tilt did: at
     1 m the 200 km sweep's held-out case 233 then stopped 2.36 m under the demand (1.150 x), at
-    1.5 m 1.81 m under it (1.048 x; docs/deorbit.md, "The MPC's thrust axis (stop 40)"); the rest are
+    1.5 m 1.81 m under it (1.048 x; docs/deorbit.md, "The MPC's thrust axis, flown as asked (stop 40)"); the rest are
     :class:`.deorbit.DeorbitController`'s.
     """
 
@@ -272,7 +272,7 @@ class DeorbitMpcController(DeorbitController):
         first 2 s of the braking, 22 asked and 11 flown at its end). The scheduled law has had the same
         integral since stop 28 (:meth:`.deorbit.DescentToAltitude.axis_bias`). With it the QP's
         ``target_above`` is 1.5 m (see the class). Replayed on the sweeps' 400 cases and 200 held out,
-        held 30 s: 592 -> 596 within 1.05 x (docs/deorbit.md, "The MPC's thrust axis (stop 40)")."""
+        held 30 s: 592 -> 596 within 1.05 x (docs/deorbit.md, "The MPC's thrust axis, flown as asked (stop 40)")."""
         if not self.braking_begun:
             self.axis_integral.pause()
             return direction_W

@@ -452,7 +452,7 @@ def test_mpc_braking_flies_the_thrust_axis_its_plan_asks_for(monkeypatch):
     integral action on the axis flown against the one asked
     (``DeorbitMpcController._axis_flown_as_asked``, the scheduled law's since stop 28) the axis
     flies the tilt asked for and the descent costs less (docs/deorbit.md, "The MPC's thrust
-    axis (stop 40)")."""
+    axis, flown as asked (stop 40)")."""
     from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
 
     end = _powered_end(24, 1)
@@ -471,7 +471,7 @@ def test_mpc_braking_flies_the_thrust_axis_its_plan_asks_for(monkeypatch):
 @pytest.mark.slow  # two MPC flights from 200 km and their optimum, ~50 s
 def test_mpc_flying_the_tilt_it_asks_for_plans_to_rest_higher_over_the_demand():
     """The 200 km sweep's case 233 (drawn past the sweep's 200 flights: one of the held-out cases the
-    axis's integral action was measured on, docs/deorbit.md, "The MPC's thrust axis (stop 40)"): with
+    axis's integral action was measured on, docs/deorbit.md, "The MPC's thrust axis, flown as asked (stop 40)"): with
     the braking flying the tilt its QP asks for, the short tilt's extra vertical thrust, a margin
     the plan had counted without knowing, is gone. Planned to rest 1 m over the demand (the target
     until stop 39) the fall stopped 2.36 m under it, outside the 2 m band, and the climb back cost

@@ -106,6 +106,13 @@ class PhaseLog:
     transitions: list[tuple[float, Phase, Phase, str]]
 
 
+def axis_slope(axis_L: np.ndarray) -> np.ndarray:
+    """An axis's horizontal over its vertical part, ENU ``(east, north)``, the vertical part floored at
+    0.5: how :class:`AxisIntegral` compares the axis flown with the one wanted (both must be measured
+    alike)."""
+    return axis_L[:2] / max(float(axis_L[2]), 0.5)
+
+
 class AxisIntegral:
     """Integral action on the thrust axis the attitude law flies, against the one asked of it.
 
@@ -130,8 +137,7 @@ class AxisIntegral:
     def update(self, t: float, q: np.ndarray, L: np.ndarray, wanted: np.ndarray) -> np.ndarray:
         """The correction at time ``t`` [s]: ``q`` the attitude (world -> body), ``L`` the local frame's
         axes in world coordinates (rows), ``wanted`` the axis asked for before the correction."""
-        z_L = L @ quat_to_matrix(q)[2]
-        flown = z_L[:2] / max(float(z_L[2]), 0.5)
+        flown = axis_slope(L @ quat_to_matrix(q)[2])
         last = self._last
         if last is not None and t > last[0]:
             self.bias += (t - last[0]) / self.time * (last[1] - flown)

@@ -52,6 +52,7 @@ from .deorbit import (
     DeorbitController,
     DescentToAltitude,
     Phase,
+    axis_slope,
     thrust_axis_attitude,
 )
 
@@ -276,8 +277,7 @@ class DeorbitMpcController(DeorbitController):
         if not self.braking_begun:
             self.axis_integral.pause()
             return direction_W
-        d = L @ direction_W
-        wanted = d[:2] / max(float(d[2]), 0.5)
+        wanted = axis_slope(L @ direction_W)
         b = self.axis_integral.update(t, state.q, L, wanted)
         axis = np.array([wanted[0] + b[0], wanted[1] + b[1], 1.0])
         return L.T @ (axis / np.linalg.norm(axis))

@@ -28,6 +28,7 @@ from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import nominal_scene
 from lander_tools.sweep.dispersion import draw_case
 from lander_tools.sweep.flight import flown_periods
+from lander_tools.sweep.metrics import in_hover_band
 from lander_tools.sweep.spec import load_spec
 
 SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
@@ -88,7 +89,7 @@ def _fly_mpc_to_the_band(case_index: int, **params: object) -> tuple[float, floa
             if drift is None:
                 drift = float(np.linalg.norm(s.v_W - float(s.v_W @ up) * up))
             h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
-            if abs(h - DEMAND.altitude) <= end.hover_band and float(np.linalg.norm(s.v_W)) <= end.hover_speed:
+            if in_hover_band(h - DEMAND.altitude, float(np.linalg.norm(s.v_W)), end.hover_band, end.hover_speed):
                 assert fuel0 is not None
                 return drift, fuel0 - s.fuel
     raise AssertionError("never in the hover band")
@@ -222,7 +223,7 @@ def _hover_to_rest(case_index: int, **params: object) -> tuple[float, float]:
             climb = float(s.v_W @ up)
             fuel0, drift0 = float(s.fuel), float(np.linalg.norm(s.v_W - climb * up))
         error = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude
-        if abs(error) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+        if in_hover_band(error, float(np.linalg.norm(s.v_W)), spec.end.hover_band, spec.end.hover_speed):
             return fuel0 - float(s.fuel), drift0
     raise AssertionError("never within the band at its speed")
 
@@ -288,7 +289,7 @@ def test_fall_past_the_limbs_end_is_stopped_at_the_limbs_deceleration():
             a_b = ctrl.descent.braking_acceleration(sim.scene.vehicle.mass(float(s.fuel)), c.GM_MARS / (r * r))
         if t_hover is None and ctrl.phase is Phase.HOVER:
             t_hover = s.t
-        if t_hover is not None and abs(error) <= spec.end.hover_band and float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed:
+        if t_hover is not None and in_hover_band(error, float(np.linalg.norm(s.v_W)), spec.end.hover_band, spec.end.hover_speed):
             ratio = (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
             break
     assert ratio is not None, "never within the band at its speed"
@@ -362,13 +363,13 @@ def _powered_end(case_index: int, controller_index: int, spec_path: Path = SPEC,
         stopped = stopped or (handover is not None and abs(error) < spec.end.hover_band and climb >= 0.0)
         if stopped and ctrl.phase is Phase.POWERED:
             climb_max = max(climb_max, climb)
-        at_rest = float(np.linalg.norm(s.v_W)) <= spec.end.hover_speed
-        if handover is not None and abs(error) <= spec.end.hover_band and at_rest:
-            ratio = (handover[2] - float(s.fuel)) / powered_optimum(sim, handover, DEMAND.altitude)
+        if handover is not None and in_hover_band(error, float(np.linalg.norm(s.v_W)), spec.end.hover_band,
+                                                  spec.end.hover_speed):
+            fuel = handover[2] - float(s.fuel)
+            ratio = fuel / powered_optimum(sim, handover, DEMAND.altitude)
             if math.isnan(fall_end):  # in the band under the hover's speed, still (slowly) falling
                 fall_end = error
-            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, flown / asked if asked > 0.0 else math.nan,
-                              handover[2] - float(s.fuel))
+            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, flown / asked if asked > 0.0 else math.nan, fuel)
     raise AssertionError("never within the band at its speed")
 
 

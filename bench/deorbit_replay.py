@@ -15,8 +15,8 @@ that improved every ``fuel_ratio`` made 13 of 200 flights fall from the hover la
 A replay is the sweep's flight, bit for bit, as long as nothing that runs before the snapshot has
 changed (the entry, the chute, what the laws learn under it): ``--check K`` re-flies the first K
 cases whole with :func:`~lander_tools.sweep.flight.fly_case` and compares. Snapshots made by older
-code get the attributes the current controller's ``reset()`` adds, and its designed gains, from a
-fresh controller.
+code get the attributes the current controller's ``reset()`` adds, and its design constants (gains,
+margins), from a fresh controller.
 
     ./dev exec python bench/deorbit_replay.py make sweeps/deorbit-200km.yaml --controller scheduled   # 14 min
     ./dev exec python bench/deorbit_replay.py replay sweeps/deorbit-200km.yaml --controller scheduled  # ~30 s
@@ -89,14 +89,17 @@ class Replayed:
     band_time: float = math.nan  # [s] from the powered descent's start to the band at rest
 
 
-#: Designed gains: constants of a law's construction, taken from the current code on replay.
-_GAINS = ("K", "k_i", "k_p")
+#: Design constants: set once as a law is built (designed gains, the braking's margins, the MPC's
+#: settings), never learnt in flight, so taken from the current code on replay. A snapshot made
+#: before stop 41 carries brake_fraction 0.95 and an MPC's before stop 40 target_above 1.0: kept,
+#: its replay measured the old margins under the new code's name.
+_DESIGN = ("K", "k_i", "k_p", "brake_fraction", "stop_above", "target_above", "settings")
 
 
 def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
     """Give ``old`` (unpickled from older code) the attributes ``fresh`` has and it lacks, and
-    fresh's designed gains (:data:`_GAINS`: a change of poles is then replayed), recursively into
-    attributes that are objects of the same class."""
+    fresh's design constants (:data:`_DESIGN`: a change of poles or of a margin is then replayed),
+    recursively into attributes that are objects of the same class."""
     if depth < 0 or not hasattr(old, "__dict__") or type(old) is not type(fresh):
         return
     mine = vars(old)
@@ -104,7 +107,7 @@ def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
     for k, v in vars(fresh).items():
         if k not in mine:
             object.__setattr__(old, k, v)  # a field added since: a frozen record's too
-        elif k in _GAINS and not frozen:
+        elif k in _DESIGN and not frozen:
             setattr(old, k, v)
         else:
             _fill_missing(mine[k], v, depth - 1)

@@ -28,7 +28,7 @@ node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
                   is reached
     powered-descent  once the descent law brakes (leaves its coast mode): the landing law's
                   horizontal and attitude loops with the vertical loop of
-                  :class:`DescentToAltitude` (braking limb ending at rest on the demand altitude,
+                  :class:`DescentToAltitude` (braking limb ending at rest ``stop_above`` over the demand altitude,
                   ``brake_fraction`` of the net thrust the attitude law leaves plus the chute's
                   drag, scheduled gain)
     hover         once the fall is stopped (climb rate within ``hover_speed``) within
@@ -65,7 +65,7 @@ from ..design.altitude import vertical_thrust
 from ..design.schedule import GainSchedule, schedule_descent_rate
 from ..design.translational import local_frame
 from ..guidance.deorbit import DeorbitPlan, EntryVehicle, Orbit, fly_entry, plan
-from ._params import poles_param, positive_param
+from ._params import non_negative_param, poles_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import (
     REQUEST_DEPLOY_PARACHUTE,
@@ -263,8 +263,12 @@ class DescentToAltitude(LandingController):
     rate_schedule: GainSchedule | None = None
     RETURN_RATE: ClassVar[float] = 1.0  # [1/s] climb-back demand per metre below the floor
     #: [m] the limb ends this far above the floor, inside the hover band (``DeorbitController.hover_band``,
-    #: 2 m): a braking that falls a little short still stops in the band instead of climbing back to it
-    stop_above: float = 1.0
+    #: 2 m): a braking that falls short still stops in the band instead of climbing back to it. The
+    #: limb's margin is kept here, in height, more than in thrust (``brake_fraction`` 0.96): a braking
+    #: that falls behind its limb ends lower, which costs nothing while it stays in the band; thrust
+    #: held back costs every flight a longer burn. 1.0 m with 0.95 until stop 41 (docs/deorbit.md,
+    #: "The scheduled law's margin, in height (stop 41)")
+    stop_above: float = 1.75
     SETTLE: ClassVar[float] = 0.8  # [s] of the braking left at which the ground speed is to be out
     TAU_MIN: ClassVar[float] = 0.7  # [s] shortest time constant of the horizontal loop (horizontal_acceleration)
     LAG: ClassVar[float] = 0.5  # [s] the attitude's lag to a new tilt under the canopy, braking
@@ -560,7 +564,9 @@ class DeorbitController(Controller):
     ``chute_margin`` (fraction of the canopy's speed and drag limits the chute is opened within),
     ``chute_altitude`` [m] (lowest planned and predicted opening), ``predict_every`` [s] (entry
     prediction period), ``brake_fraction`` (of the net thrust acceleration, the descent law's braking
-    limb: 0.95 leaves the feedback 5 % for a thrust, mass or density off the model), ``descent_pole``
+    limb: 0.96 leaves the feedback 4 % for a thrust, mass or density off the model), ``stop_above``
+    [m] (where the limb ends over the demand altitude, in ``[0, hover_band)``: the rest of the limb's
+    margin, in height, :attr:`DescentToAltitude.stop_above`), ``descent_pole``
     [1/s] (of its scheduled velocity loop, :class:`DescentToAltitude`), ``attitude_poles`` (of the
     quaternion attitude law), ``hover_attitude_poles`` (the hover's, :class:`HoverCapture`),
     ``design_fuel`` [kg]."""
@@ -570,7 +576,8 @@ class DeorbitController(Controller):
     def __init__(self, vehicle: Vehicle, *, slew_time: float = 60.0, burn_throttle: float = 0.85,
                  hover_band: float = 2.0, hover_speed: float = 0.2, chute_first: bool = True,
                  chute_margin: float = 0.9, chute_altitude: float = 3000.0, predict_every: float = 1.0,
-                 brake_fraction: float = 0.95, descent_pole: float = -2.0,
+                 brake_fraction: float = 0.96, stop_above: float = DescentToAltitude.stop_above,
+                 descent_pole: float = -2.0,
                  attitude_poles: object = (-1.0,) * 6, hover_attitude_poles: object = HOVER_ATTITUDE_POLES,
                  design_fuel: float | None = None) -> None:
         super().__init__(vehicle)
@@ -591,6 +598,9 @@ class DeorbitController(Controller):
         self._drag_k = (0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
                         + 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA)
         self.descent = DescentToAltitude(vehicle, chute_margin=self.chute_margin, brake_fraction=brake_fraction)
+        self.descent.stop_above = non_negative_param("stop_above", stop_above)
+        if self.descent.stop_above >= self.hover_band:  # a limb ending over the band never hands over to the hover
+            raise ControllerError(f"stop_above: expected less than hover_band ({self.hover_band} m), got {stop_above!r}")
         if not (isinstance(descent_pole, (int, float)) and descent_pole < 0):
             raise ControllerError(f"descent_pole: expected a negative number [1/s], got {descent_pole!r}")
         # the velocity loop's gain over the descent: mass from dry to full, drag damping from none to

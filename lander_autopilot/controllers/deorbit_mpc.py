@@ -171,11 +171,14 @@ class DeorbitMpcController(DeorbitController):
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
                  predict_every: float = 1.0, brake_fraction: float = 0.5, attitude_poles: object = (-1.0,) * 6,
                  hover_attitude_poles: object = HOVER_ATTITUDE_POLES, design_fuel: float | None = None) -> None:
-        # the parent's parameters spelt out, so that the registry names an unknown one
+        # the parent's parameters spelt out, so that the registry names an unknown one. The handover
+        # is where the descent law's braking curve (at brake_fraction) is reached; that curve ends at
+        # the demand, not stop_above over it (the scheduled law's margin for its own braking; it would
+        # move the MPC's handover). The QP's own margin is target_above.
         super().__init__(vehicle, slew_time=slew_time, burn_throttle=burn_throttle, hover_band=hover_band,
                          hover_speed=hover_speed, chute_first=chute_first, chute_margin=chute_margin,
                          chute_altitude=chute_altitude, predict_every=predict_every, brake_fraction=brake_fraction,
-                         attitude_poles=attitude_poles, hover_attitude_poles=hover_attitude_poles,
+                         stop_above=0.0, attitude_poles=attitude_poles, hover_attitude_poles=hover_attitude_poles,
                          design_fuel=design_fuel)
         if not isinstance(horizon_steps, int) or horizon_steps < 2:
             raise ControllerError(f"horizon_steps: expected an integer >= 2, got {horizon_steps!r}")
@@ -196,10 +199,6 @@ class DeorbitMpcController(DeorbitController):
                                     attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag),
                                     plan_reserve=self._share("plan_reserve", plan_reserve))
         self.axial = vertical_thrust(vehicle)
-        # The handover is where the descent law's braking curve (at brake_fraction) is reached; that
-        # curve ends at the demand, not stop_above over it (the scheduled law's margin for its own
-        # braking; it would move the MPC's handover). The QP's own margin is target_above.
-        self.descent.stop_above = 0.0
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
         self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(MPC_ATTITUDE_POLE,) * 6)

@@ -123,6 +123,14 @@ def test_bad_mpc_parameters_name_the_key():
         make_controller("deorbit-mpc", sc.vehicle, horizon=3)
     with pytest.raises(ControllerError, match="chute_margin"):
         make_controller("deorbit", sc.vehicle, chute_margin=1.5)
+    for bad in (-1.0, 2.0, float("nan"), "high"):  # 2.0: the hover band's edge, the limb would end outside it
+        with pytest.raises(ControllerError, match="stop_above"):
+            make_controller("deorbit", sc.vehicle, stop_above=bad)
+    assert make_controller("deorbit", sc.vehicle, stop_above=0.5, hover_band=1.0).descent.stop_above == 0.5
+    with pytest.raises(ControllerError, match="stop_above"):  # the default's 1.75 m, outside a 1 m band
+        make_controller("deorbit", sc.vehicle, hover_band=1.0)
+    # the MPC's descent law ends its curve at the demand (its handover); its own margin is target_above
+    assert make_controller("deorbit-mpc", sc.vehicle, hover_band=1.0, target_above=0.5).descent.stop_above == 0.0
     for name in ("deorbit", "deorbit-mpc"):
         for key in ("attitude_poles", "hover_attitude_poles"):
             for bad in ([-1.0] * 5, [1.0] * 6, "fast"):

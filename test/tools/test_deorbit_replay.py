@@ -45,9 +45,10 @@ def test_a_case_without_its_snapshot_is_reported_not_flown(tmp_path, capsys):
     assert "1 flights: 1 no snapshot" in capsys.readouterr().out
 
 
-def test_a_snapshot_from_older_code_gets_the_current_gains_and_keeps_its_state():
-    # A controller pickled before a change of the hover's attitude poles (and without an attribute
-    # the current reset() adds): replayed, it flies the current gains, and what it learnt stays.
+def test_a_snapshot_from_older_code_gets_the_current_design_and_keeps_its_state():
+    # A controller pickled before a change of the hover's attitude poles and of the braking's margins
+    # (and without an attribute the current reset() adds): replayed, it flies the current gains and
+    # margins, and what it learnt stays.
     import numpy as np
 
     from lander_autopilot.controllers import make_controller
@@ -55,14 +56,17 @@ def test_a_snapshot_from_older_code_gets_the_current_gains_and_keeps_its_state()
 
     tool = _tool()
     vehicle = load_scene("deorbit-200km").vehicle
-    old = make_controller("deorbit", vehicle, hover_attitude_poles=[-2.0] * 6)
+    old = make_controller("deorbit", vehicle, hover_attitude_poles=[-2.0] * 6, brake_fraction=0.95)
     fresh = make_controller("deorbit", vehicle)
     old.descent.drag_scale = 0.87  # learnt under the chute
     del old.descent.heading_W
+    del old.descent.stop_above  # a class attribute until stop 41, not pickled
     assert not np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
     tool._fill_missing(old, fresh)
     assert np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
     assert old.descent.drag_scale == 0.87 and old.descent.heading_W is fresh.descent.heading_W
+    # the braking's margins too: the replay flies the current code's
+    assert (old.descent.brake_fraction, old.descent.stop_above) == (fresh.descent.brake_fraction, fresh.descent.stop_above)
 
 
 def test_a_frozen_record_from_older_code_gets_the_fields_added_since():

@@ -175,9 +175,10 @@ def test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band():
     assert -band <= error <= band
 
 
-def _hover_start(case_index: int) -> tuple[float, float]:
-    """Scheduled law, core-only: (altitude error [m], ground speed [m/s]) where the `hover` phase begins."""
-    for s, ctrl, _sim in _flown(case_index, 0):
+def _hover_start(case_index: int, **params: object) -> tuple[float, float]:
+    """Scheduled law, core-only, ``params`` over the sweep's: (altitude error [m], ground speed [m/s])
+    where the `hover` phase begins."""
+    for s, ctrl, _sim in _flown(case_index, 0, **params):
         if ctrl.phase is Phase.HOVER:
             up = s.r_W / float(np.linalg.norm(s.r_W))
             climb = float(s.v_W @ up)
@@ -319,24 +320,31 @@ def test_fall_past_the_limbs_end_is_stopped_at_the_limbs_deceleration():
     assert ratio <= 1.05
 
 
-@pytest.mark.slow  # two flights, ~20 s
+@pytest.mark.slow  # three flights, ~30 s
 def test_braking_takes_the_drift_out_before_its_shorter_end(monkeypatch):
     """Case 164 (5.2 m/s east, 3.3 m/s north of wind). With the fall past the limb's end braked at
     ``a_b`` the braking ends sooner, and with stop 28's horizontal loop (``LAG`` 0.7 s, ``SETTLE``
     1.5 s: the lag term held the loop's time constant near ``tau + LAG``) the hover began with
     0.30 m/s of ground speed, over the band's 0.2, and spent ~1 s of hover thrust on it (1.115 x
     the optimum in the replay); at 0.5 s and 0.8 s it begins with 0.19 m/s (1.042 x). Both flights
-    count the thrust asked for at the mixer's ceiling, as the law then did: counting the thrust the
-    mix gave (stop 35, ``test_braking_at_the_mixers_ceiling_...``) also takes most of this drift
-    out with the old ``LAG`` and ``SETTLE`` (0.108 m/s)."""
+    count the thrust asked for at the mixer's ceiling, and brake on the limb's margins, as the law
+    then did: counting the thrust the mix gave (stop 35, ``test_braking_at_the_mixers_ceiling_...``)
+    also takes most of this drift out with the old ``LAG`` and ``SETTLE`` (0.108 m/s); on stop 41's
+    margins (``brake_fraction`` 0.96, ``stop_above`` 1.75 m) that law, counting the thrust asked,
+    begins the hover with 0.225 m/s (0.336 with the old ``LAG`` and ``SETTLE``), and the law as it
+    is with 0.055 m/s."""
     speed = load_spec(SPEC).end.hover_speed
+    _, drift_now = _hover_start(164)
+    then = {"brake_fraction": 0.95, "stop_above": 1.0}  # stop 31's limb
     monkeypatch.setattr(DescentToAltitude, "axial_at_ceiling", lambda self, m: None)
-    _, drift = _hover_start(164)
+    _, drift = _hover_start(164, **then)
     monkeypatch.setattr(DescentToAltitude, "LAG", 0.7)
     monkeypatch.setattr(DescentToAltitude, "SETTLE", 1.5)
-    _, drift_before = _hover_start(164)
-    print(f"ground speed as the hover begins: {drift_before:.3f} m/s (LAG 0.7 s, SETTLE 1.5 s) -> {drift:.3f} m/s")
+    _, drift_before = _hover_start(164, **then)
+    print(f"ground speed as the hover begins: {drift_before:.3f} m/s (LAG 0.7 s, SETTLE 1.5 s) -> {drift:.3f} m/s; "
+          f"the law as it is: {drift_now:.3f} m/s")
     assert drift < speed < drift_before
+    assert drift_now < speed
 
 
 class PoweredEnd(NamedTuple):

@@ -598,9 +598,7 @@ class DeorbitController(Controller):
         self._drag_k = (0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
                         + 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA)
         self.descent = DescentToAltitude(vehicle, chute_margin=self.chute_margin, brake_fraction=brake_fraction)
-        self.descent.stop_above = non_negative_param("stop_above", stop_above)
-        if self.descent.stop_above >= self.hover_band:  # a limb ending over the band never hands over to the hover
-            raise ControllerError(f"stop_above: expected less than hover_band ({self.hover_band} m), got {stop_above!r}")
+        self.descent.stop_above = self._in_band("stop_above", stop_above)
         if not (isinstance(descent_pole, (int, float)) and descent_pole < 0):
             raise ControllerError(f"descent_pole: expected a negative number [1/s], got {descent_pole!r}")
         # the velocity loop's gain over the descent: mass from dry to full, drag damping from none to
@@ -624,6 +622,14 @@ class DeorbitController(Controller):
                                                  chute_max_speed=self.chute_margin * c.PARACHUTE_MAX_SPEED,
                                                  chute_max_drag=self.chute_margin * c.PARACHUTE_MAX_DRAG)
         self.reset()
+
+    def _in_band(self, name: str, value: object) -> float:
+        """A height [m] over the demand that the powered descent ends at: in ``[0, hover_band)``, since a
+        descent ending over the band never hands over to the hover (``ControllerError`` names ``name``)."""
+        x = non_negative_param(name, value)
+        if x >= self.hover_band:
+            raise ControllerError(f"{name}: expected less than hover_band ({self.hover_band} m), got {value!r}")
+        return x
 
     def reset(self) -> None:
         self.attitude.reset()

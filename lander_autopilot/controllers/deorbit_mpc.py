@@ -190,9 +190,7 @@ class DeorbitMpcController(DeorbitController):
         if not (0.0 <= float(glide_slope) < math.pi / 2):
             raise ControllerError(f"glide_slope: expected a value in [0, pi/2) rad, got {glide_slope!r}")
         self.glide_slope = float(glide_slope)
-        self.target_above = non_negative_param("target_above", target_above)
-        if self.target_above >= self.hover_band:
-            raise ControllerError(f"target_above: expected less than hover_band ({self.hover_band} m), got {target_above!r}")
+        self.target_above = self._in_band("target_above", target_above)
         self.settings = MpcSettings(horizon_steps=horizon_steps, min_time_to_go=positive_param("min_time_to_go", min_time_to_go),
                                     reference_steps=reference_steps,
                                     reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust),

@@ -143,7 +143,13 @@ class DeorbitMpcController(DeorbitController):
     target (stop 34)"). 1 m from stop 34 to 39; 1.5 since the braking flies the tilt it asks for
     (:meth:`_axis_flown_as_asked`), which leaves it less vertical thrust than the short tilt did: at
     1 m the 200 km sweep's held-out case 233 then stopped 2.36 m under the demand (1.150 x), at
-    1.5 m 1.81 m under it (1.048 x; docs/deorbit.md, "The MPC's thrust axis, flown as asked (stop 40)"); the rest are
+    1.5 m 1.81 m under it (1.048 x; docs/deorbit.md, "The MPC's thrust axis, flown as asked (stop 40)");
+    ``limb_time`` [s] (1.0; 0 turns it off): in the last ``limb_time`` before the reference's end the
+    vertical thrust is bounded by the constant deceleration to rest at the plan's target, the
+    scheduled law's limb: never more than it, and the limb's once it needs the thrust the plan
+    brakes on (:meth:`.guidance.descent_mpc.DescentMpc._last_second`: there the plan is degenerate
+    along the vertical and, once its end recedes, brakes late period after period; docs/deorbit.md,
+    "The MPC's last second (stop 42)"); the rest are
     :class:`.deorbit.DeorbitController`'s.
     """
 
@@ -166,6 +172,7 @@ class DeorbitMpcController(DeorbitController):
     def __init__(self, vehicle: Vehicle, *, horizon_steps: int = 20, min_time_to_go: float = 0.3, max_tilt: float = 0.7,
                  glide_slope: float = 0.0, reference_steps: int = 20, reference_thrust: float = 0.94,
                  attitude_lag: float | None = None, plan_reserve: float = 0.04, target_above: float = 1.5,
+                 limb_time: float = 1.0,
                  slew_time: float = 60.0,
                  burn_throttle: float = 0.85, hover_band: float = 2.0, hover_speed: float = 0.2,
                  chute_first: bool = True, chute_margin: float = 0.9, chute_altitude: float = 3000.0,
@@ -195,7 +202,8 @@ class DeorbitMpcController(DeorbitController):
                                     reference_steps=reference_steps,
                                     reference_thrust_fraction=self._fraction("reference_thrust", reference_thrust),
                                     attitude_lag=ATTITUDE_LAG if attitude_lag is None else non_negative_param("attitude_lag", attitude_lag),
-                                    plan_reserve=self._share("plan_reserve", plan_reserve))
+                                    plan_reserve=self._share("plan_reserve", plan_reserve),
+                                    limb_time=non_negative_param("limb_time", limb_time))
         self.axial = vertical_thrust(vehicle)
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
@@ -314,8 +322,7 @@ class DeorbitMpcController(DeorbitController):
         if v_L[2] >= 0.0 or mpc is None:
             return T_L
         g = c.GM_MARS / float(r_W @ r_W)
-        drag_up = 0.0 if mpc.drag is None else float(
-            mpc.drag.acceleration(np.array([[0.0, 0.0, h]]), v_L[None, :], np.array([mass]))[0, 2])
+        drag_up = mpc.drag_up(np.array([0.0, 0.0, h]), v_L, mass)
         cap = mass * (g - drag_up - float(v_L[2]) / self.settings.hold_time) / max(axis_up, 0.5)
         mag = float(np.linalg.norm(T_L))
         return T_L * (cap / mag) if mag > cap > 0.0 else T_L

@@ -42,6 +42,12 @@ gravity loss (1.095 x against 1.03 x at 0.99 in ``test_descent_mpc.py``), hence 
 (a receding end gave the plan slack: it eased off, arrived late and low, 1.06 x); only in its last
 ``min_time_to_go`` does it.
 
+In its last ``limb_time`` s (0 by default; the de-orbit law's 1 s) the vertical command is bounded
+by the constant deceleration to rest at the target from the measured state (the limb,
+:meth:`DescentMpc.limb_acceleration`): never more than it, and the limb itself once it needs the
+thrust the plan brakes on (:meth:`DescentMpc._last_second`). There the plan is degenerate along the
+vertical and, once its end recedes, coasts and brakes late period after period.
+
 The thrust axis is not instant: the attitude loop turns it with a lag, and under a canopy in a
 wind the minimum-fuel plan brakes the drift late (early on, the canopy's drag pulls the lander
 back toward the wind's speed), where a lag of ~1 s matters. With ``attitude_lag`` > 0 the QP's
@@ -91,6 +97,9 @@ class MpcSettings:
     hold_time: float = 0.1
     end_penalty: float = 100.0  # end miss weight, x mass: impulse [kg m/s] per m (or m/s) missed, per kg
     attitude_lag: float = 0.0  # s: time constant of the thrust axis following the command (0: instant)
+    # s: in this much before the reference's end, while falling, the vertical command is bounded by
+    # the constant deceleration to rest at the target (:meth:`DescentMpc._last_second`; 0: never)
+    limb_time: float = 0.0
 
     def __post_init__(self) -> None:
         if self.horizon_steps < 2:
@@ -104,8 +113,9 @@ class MpcSettings:
         for name in ("min_time_to_go", "hold_time", "end_penalty", "reserve_time"):
             if not (getattr(self, name) > 0):
                 raise GuidanceError(f"{name} must be positive, got {getattr(self, name)}")
-        if not (self.attitude_lag >= 0):
-            raise GuidanceError(f"attitude_lag must be >= 0 s, got {self.attitude_lag}")
+        for name in ("attitude_lag", "limb_time"):
+            if not (getattr(self, name) >= 0):
+                raise GuidanceError(f"{name} must be >= 0 s, got {getattr(self, name)}")
 
 
 @dataclass
@@ -281,4 +291,49 @@ class DescentMpc:
             self._last = np.array(self._a.value[:n].mean(axis=0))
         else:
             self.stats.failures += 1  # hold the last command: the next period tries again
-        return self._last * mass
+        acc = self._last
+        if st.limb_time > 0.0 and sol.final_time - t <= st.limb_time and velocity_L[2] < 0.0:
+            acc = self._last_second(acc, position_L, velocity_L, mass, available)
+        return acc * mass
+
+    def _last_second(self, acc: np.ndarray, position_L: np.ndarray, velocity_L: np.ndarray, mass: float,
+                     available: float) -> np.ndarray:
+        """The command ``acc`` [m/s^2, local] of the plan's last ``limb_time`` s with its vertical part
+        bounded by the limb (:meth:`limb_acceleration`, the constant deceleration to rest at the target):
+        never more than the limb needs (braking harder only stops the fall early, over the target,
+        and the rest is flown down on gravity loss), and once the limb needs the thrust the plan
+        brakes on (its bound with the reserve kept), the limb's (the plan would coast a period and
+        brake late, period after period). Under the target, all the thrust along up."""
+        need = self.limb_acceleration(position_L, velocity_L, mass)
+        if not math.isfinite(need):
+            return np.array([0.0, 0.0, self.limits.rho_max / mass])
+        st = self.settings
+        brakes_on = st.plan_thrust_fraction * (1.0 - st.plan_reserve) * available * self.limits.rho_max / mass
+        return np.array([acc[0], acc[1], need if need >= brakes_on else min(float(acc[2]), need)])
+
+    def limb_acceleration(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float) -> float:
+        """The vertical thrust acceleration [m/s^2, up] that stops a fall (``velocity_L[2] < 0``) at rest
+        at the target's altitude at constant deceleration: ``g - a_D,up + v_z^2 / (2 dz)``, ``dz`` the
+        height over the target and ``a_D,up`` the plan's drag now. At or under the target it is
+        unbounded (``inf``, the formula's limit as ``dz`` goes to 0): :meth:`command` then asks for all
+        the thrust along up, stopping the fall before the drift (the caller caps what would turn the
+        fall into a climb within a period).
+
+        Why, in the plan's last ``limb_time`` s (:meth:`_last_second`): there the minimum-fuel plan
+        is degenerate (along the vertical, with the end time fixed and little drag, every thrust
+        profile that stops at the target costs the same impulse), and once its end recedes (the last
+        ``min_time_to_go``) it coasts and then brakes late, period after period. The flights ended
+        in a wobble of light and full periods, or with the plan's bound (the reserve, the attitude
+        law's share) braking on less than the thrusters give while the fall ran past the target
+        (docs/deorbit.md, "The MPC's last second (stop 42)")."""
+        dz = float(position_L[2]) - float(self.target[2])
+        if dz <= 0.0:
+            return math.inf
+        return self.g - self.drag_up(position_L, velocity_L, mass) + float(velocity_L[2]) ** 2 / (2.0 * dz)
+
+    def drag_up(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float) -> float:
+        """The plan's drag acceleration along up [m/s^2] at one state (0 without drag)."""
+        if self.drag is None:
+            return 0.0
+        return float(self.drag.acceleration(np.asarray(position_L, float)[None, :], np.asarray(velocity_L, float)[None, :],
+                                            np.array([mass]))[0, 2])

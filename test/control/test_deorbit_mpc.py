@@ -107,6 +107,10 @@ def test_bad_mpc_parameters_name_the_key():
         make_controller("deorbit-mpc", sc.vehicle, max_tilt=2.0)
     with pytest.raises(ControllerError, match="min_time_to_go"):
         make_controller("deorbit-mpc", sc.vehicle, min_time_to_go=0.0)
+    for bad in (-1.0, "late"):
+        with pytest.raises(ControllerError, match="limb_time"):
+            make_controller("deorbit-mpc", sc.vehicle, limb_time=bad)
+    assert make_controller("deorbit-mpc", sc.vehicle, limb_time=0.0).settings.limb_time == 0.0  # the QP to the end
     for bad in (0.0, 1.2):
         with pytest.raises(ControllerError, match="reference_thrust"):
             make_controller("deorbit-mpc", sc.vehicle, reference_thrust=bad)

@@ -407,16 +407,17 @@ def test_mpc_last_braking_period_stops_the_fall_not_into_a_climb(monkeypatch):
     after the fall's end in the powered descent: 1.029 x. Both flights plan to the demand itself
     (``target_above`` 0) and fly the QP's thrust from the handover on (``COAST_COLLECTIVE`` 0), as
     when the cap was added: planned 1 m over the demand (the default since stop 34), or coasting
-    along the airflow until the braking (since stop 38), this case stops without the overshoot
-    even uncapped."""
+    along the airflow until the braking (since stop 38), or braking its last second at the constant
+    deceleration to its target (``limb_time``, since stop 42), this case stops without the overshoot
+    even uncapped; so both flights fly the QP to the end (``limb_time`` 0)."""
     from lander_autopilot.controllers import deorbit_mpc
     from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
 
     monkeypatch.setattr(deorbit_mpc, "COAST_COLLECTIVE", 0.0)
     speed = load_spec(SPEC_0).end.hover_speed
-    climb, ratio, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0)
+    climb, ratio, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0, limb_time=0.0)
     monkeypatch.setattr(DeorbitMpcController, "_stop_within_period", lambda self, T_L, *args: T_L)
-    climb_before, ratio_before, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0)
+    climb_before, ratio_before, *_ = _powered_end(96, 1, SPEC_0, target_above=0.0, limb_time=0.0)
     print(f"fastest climb after the fall's end {climb_before:.3f} -> {climb:.3f} m/s; "
           f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
     assert climb < speed < climb_before
@@ -432,7 +433,8 @@ def test_mpc_plans_to_rest_over_the_demand_so_a_plan_that_falls_behind_stops_in_
     the same shortfall stopped in the band (1.051 x; docs/deorbit.md, "The MPC's target (stop 34)").
     Since stop 40 the braking flies the axis's tilt it asks for, which leaves it less vertical thrust
     than the short tilt did, and the target is 1.5 m: 2.92 m and 1.206 x planned to the demand,
-    1.44 m under it and 1.051 x planned over it."""
+    1.44 m under it and 1.051 x planned over it; since stop 42, its last second braked at the
+    constant deceleration to its target, 2.82 m and 1.199 x, 1.34 m and 1.042 x."""
     band = load_spec(SPEC_0).end.hover_band
     _, ratio_before, stop_before, *_ = _powered_end(78, 1, SPEC_0, target_above=0.0)
     _, ratio, stop, *_ = _powered_end(78, 1, SPEC_0)
@@ -478,12 +480,14 @@ def test_mpc_braking_flies_the_thrust_axis_its_plan_asks_for(monkeypatch):
     integral action on the axis flown against the one asked
     (``DeorbitMpcController._axis_flown_as_asked``, the scheduled law's since stop 28) the axis
     flies the tilt asked for and the descent costs less (docs/deorbit.md, "The MPC's thrust
-    axis, flown as asked (stop 40)")."""
+    axis, flown as asked (stop 40)"). Both flights fly the QP to the end (``limb_time`` 0), as when
+    the integral was added: the last second's limb (stop 42) asks for no tilt once the fall has
+    passed its target, which moves the ratio measured (the shipped law flies this case at 1.0495 x)."""
     from lander_autopilot.controllers.deorbit_mpc import DeorbitMpcController
 
-    end = _powered_end(24, 1)
+    end = _powered_end(24, 1, limb_time=0.0)
     monkeypatch.setattr(DeorbitMpcController, "_axis_flown_as_asked", lambda self, t, s, L, d: d)
-    before = _powered_end(24, 1)
+    before = _powered_end(24, 1, limb_time=0.0)
     print(f"tilt flown over tilt asked in the braking {before.axis_follow:.3f} -> {end.axis_follow:.3f}; "
           f"to the band at rest {before.ratio:.4f} -> {end.ratio:.4f} x the optimum")
     # the canopy's weathervane stiffness is about the attitude law's: at most half the tilt flown
@@ -502,7 +506,8 @@ def test_mpc_flying_the_tilt_it_asks_for_plans_to_rest_higher_over_the_demand():
     the plan had counted without knowing, is gone. Planned to rest 1 m over the demand (the target
     until stop 39) the fall stopped 2.36 m under it, outside the 2 m band, and the climb back cost
     0.1 of the optimum (1.150 x); planned 1.5 m over it (``target_above``'s default) it stops in
-    the band (-1.81 m, 1.048 x)."""
+    the band (-1.81 m, 1.048 x; since stop 42, its last second braked at the constant deceleration
+    to its target, -2.22 m and 1.131 x against -1.66 m and 1.040 x)."""
     band = load_spec(SPEC).end.hover_band
     _, ratio_before, stop_before, *_ = _powered_end(233, 1, target_above=1.0)
     _, ratio, stop, *_ = _powered_end(233, 1)
@@ -510,3 +515,22 @@ def test_mpc_flying_the_tilt_it_asks_for_plans_to_rest_higher_over_the_demand():
           f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
     assert stop_before < -band < stop
     assert ratio < ratio_before - 0.05  # the climb back into the band, ~2 s of hover thrust
+
+
+@pytest.mark.slow  # two MPC flights from scenario 0's orbit and their optimum, ~50 s
+def test_mpc_last_second_brakes_at_constant_deceleration_to_its_target():
+    """Scenario 0's case 203 (drawn past the sweep's 200 flights: held out at stop 39). In its last
+    second the QP's plan is degenerate along the vertical (the end time fixed, every profile that
+    stops at the target costs the same impulse), and once its end recedes it coasts and brakes
+    late: a period at a collective of 0.22 at 1.5 m/s of fall, then full thrust, four periods for
+    the last 1.5 m/s, 1.0547 x the optimum. Braking the last second at the constant deceleration
+    to rest at the target (``limb_time`` 1 s, ``DescentMpc.limb_acceleration``), 1.0442 x
+    (docs/deorbit.md, "The MPC's last second (stop 42)")."""
+    band = load_spec(SPEC_0).end.hover_band
+    _, ratio_before, stop_before, *_ = _powered_end(203, 1, SPEC_0, limb_time=0.0)
+    _, ratio, stop, *_ = _powered_end(203, 1, SPEC_0)
+    print(f"the fall stopped at {stop_before:+.2f} -> {stop:+.2f} m from the demand; "
+          f"fuel to the band at rest {ratio_before:.4f} -> {ratio:.4f} x the optimum")
+    assert -band < stop < band
+    assert ratio < ratio_before - 0.005
+    assert ratio < 1.05 < ratio_before

@@ -91,6 +91,36 @@ def test_the_plan_reserve_is_what_brakes_a_fall_whose_thrust_falls_short():
     assert 1.0 < fuel_reserve / fuel_plain < 1.03
 
 
+def test_the_last_second_stops_the_fall_at_constant_deceleration_nearer_the_target_for_less_fuel():
+    # In its last second the plan is degenerate along the vertical (with the end time fixed, every
+    # profile that stops at the target costs the same impulse, and the end recedes in its last
+    # 0.3 s): the QP coasts and brakes late, period after period. The limb (limb_time) brakes at
+    # the constant deceleration to rest at the target instead, from what is measured each period.
+    # With the de-orbit law's margins (reference at 0.94, 4 % reserve), as modelled and 3 % short:
+    for delivered in (1.0, 0.97):
+        qp_err, qp_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04), delivered)
+        limb_err, limb_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04, limb_time=1.0),
+                                    delivered)
+        print(f"thrust x{delivered}: stop {qp_err:+.3f} -> {limb_err:+.3f} m, fuel {qp_fuel:.3f} -> {limb_fuel:.3f} kg")
+        assert abs(limb_err) < abs(qp_err)
+        assert limb_fuel < qp_fuel
+
+
+def test_the_limb_is_the_constant_deceleration_to_rest_at_the_target():
+    r0, v0, m0 = np.array([0.0, 0.0, 800.0]), np.array([0.0, 0.0, -40.0]), 170.0
+    mpc = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET, free_horizontal=True)
+    # no drag: v^2 / (2 dz) of deceleration on top of the weight; 12 m over the target at 6 m/s
+    a = mpc.limb_acceleration(np.array([3.0, 1.0, 512.0]), np.array([0.5, 0.0, -6.0]), 150.0)
+    assert a == pytest.approx(SURFACE_GRAVITY + 36.0 / 24.0, rel=1e-12)
+    # at or under the target while still falling: unbounded (the limit as dz goes to 0), and the
+    # command in the limb's time is then all the thrust along up
+    assert mpc.limb_acceleration(np.array([0.0, 0.0, 499.0]), np.array([0.0, 0.0, -1.0]), 150.0) == math.inf
+    late = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET, free_horizontal=True,
+                      settings=MpcSettings(limb_time=1.0))
+    T = late.command(late.reference.sol.final_time - 0.5, np.array([2.0, 0.0, 499.5]), np.array([1.0, 0.0, -1.0]), 150.0)
+    assert T == pytest.approx([0.0, 0.0, LIMITS.rho_max], rel=1e-12)
+
+
 def test_mpc_holds_its_settings_to_account():
     with pytest.raises(GuidanceError, match="reference_thrust_fraction"):
         MpcSettings(reference_thrust_fraction=1.5)
@@ -107,3 +137,5 @@ def test_mpc_holds_its_settings_to_account():
         MpcSettings(reserve_time=0.0)
     with pytest.raises(GuidanceError, match="hold_time"):
         MpcSettings(hold_time=0.0)
+    with pytest.raises(GuidanceError, match="limb_time"):
+        MpcSettings(limb_time=-1.0)

@@ -523,9 +523,9 @@ def test_mpc_last_second_brakes_at_constant_deceleration_to_its_target():
     second the QP's plan is degenerate along the vertical (the end time fixed, every profile that
     stops at the target costs the same impulse), and once its end recedes it coasts and brakes
     late: a period at a collective of 0.22 at 1.5 m/s of fall, then full thrust, four periods for
-    the last 1.5 m/s, 1.0547 x the optimum. Braking the last second at the constant deceleration
-    to rest at the target (``limb_time`` 1 s, ``DescentMpc.limb_acceleration``), 1.0442 x
-    (docs/deorbit.md, "The MPC's last second (stop 42)")."""
+    the last 1.5 m/s, 1.0547 x the optimum. With the last second's vertical thrust bounded by the
+    constant deceleration to rest at the target (``limb_time`` 1 s, ``DescentMpc._last_second``),
+    1.0391 x (docs/deorbit.md, "The MPC's last second (stop 42)")."""
     band = load_spec(SPEC_0).end.hover_band
     _, ratio_before, stop_before, *_ = _powered_end(203, 1, SPEC_0, limb_time=0.0)
     _, ratio, stop, *_ = _powered_end(203, 1, SPEC_0)

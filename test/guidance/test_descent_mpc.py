@@ -94,8 +94,9 @@ def test_the_plan_reserve_is_what_brakes_a_fall_whose_thrust_falls_short():
 def test_the_last_second_stops_the_fall_at_constant_deceleration_nearer_the_target_for_less_fuel():
     # In its last second the plan is degenerate along the vertical (with the end time fixed, every
     # profile that stops at the target costs the same impulse, and the end recedes in its last
-    # 0.3 s): the QP coasts and brakes late, period after period. The limb (limb_time) brakes at
-    # the constant deceleration to rest at the target instead, from what is measured each period.
+    # 0.3 s): the QP coasts and brakes late, period after period. With limb_time its vertical
+    # command is bounded by the constant deceleration to rest at the target, from what is measured
+    # each period (DescentMpc._last_second).
     # With the de-orbit law's margins (reference at 0.94, 4 % reserve), as modelled and 3 % short:
     for delivered in (1.0, 0.97):
         qp_err, qp_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04), delivered)

@@ -41,7 +41,7 @@ from lander_sim.physics.vehicle import Vehicle
 from ..design.altitude import balanced_thrust, vertical_thrust
 from ..design.translational import local_frame
 from ..guidance.descent_mpc import DescentMpc, MpcSettings
-from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError
+from ..guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError, drag_up
 from ._params import non_negative_param, positive_param
 from .attitude import QuaternionAttitudeController
 from .base import ControllerError, ControlOutput, Demand, saturate
@@ -322,8 +322,8 @@ class DeorbitMpcController(DeorbitController):
         if v_L[2] >= 0.0 or mpc is None:
             return T_L
         g = c.GM_MARS / float(r_W @ r_W)
-        drag_up = mpc.drag_up(np.array([0.0, 0.0, h]), v_L, mass)
-        cap = mass * (g - drag_up - float(v_L[2]) / self.settings.hold_time) / max(axis_up, 0.5)
+        a_drag_up = drag_up(mpc.drag, np.array([0.0, 0.0, h]), v_L, mass)
+        cap = mass * (g - a_drag_up - float(v_L[2]) / self.settings.hold_time) / max(axis_up, 0.5)
         mag = float(np.linalg.norm(T_L))
         return T_L * (cap / mag) if mag > cap > 0.0 else T_L
 

@@ -76,7 +76,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, DragModel, GuidanceError, solve
+from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, DragModel, GuidanceError, drag_up, solve
 
 
 @dataclass(frozen=True)
@@ -329,11 +329,4 @@ class DescentMpc:
         dz = float(position_L[2]) - float(self.target[2])
         if dz <= 0.0:
             return math.inf
-        return self.g - self.drag_up(position_L, velocity_L, mass) + float(velocity_L[2]) ** 2 / (2.0 * dz)
-
-    def drag_up(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float) -> float:
-        """The plan's drag acceleration along up [m/s^2] at one state (0 without drag)."""
-        if self.drag is None:
-            return 0.0
-        return float(self.drag.acceleration(np.asarray(position_L, float)[None, :], np.asarray(velocity_L, float)[None, :],
-                                            np.array([mass]))[0, 2])
+        return self.g - drag_up(self.drag, position_L, velocity_L, mass) + float(velocity_L[2]) ** 2 / (2.0 * dz)

@@ -112,6 +112,14 @@ class DragModel:
                                                        + v[:, :, None] * v[:, None, :] / s[:, None, None])
 
 
+def drag_up(drag: DragModel | None, position_L: np.ndarray, velocity_L: np.ndarray, mass: float) -> float:
+    """The drag acceleration along up [m/s^2, local ENU] at one state; 0 without a drag model."""
+    if drag is None:
+        return 0.0
+    return float(drag.acceleration(np.asarray(position_L, float)[None, :], np.asarray(velocity_L, float)[None, :],
+                                   np.array([mass]))[0, 2])
+
+
 @dataclass(frozen=True)
 class DescentProblem:
     """From ``(position_L, velocity_L, mass)`` to rest at ``target_L`` (m, m/s, kg).

@@ -433,8 +433,9 @@ def test_mpc_plans_to_rest_over_the_demand_so_a_plan_that_falls_behind_stops_in_
     the same shortfall stopped in the band (1.051 x; docs/deorbit.md, "The MPC's target (stop 34)").
     Since stop 40 the braking flies the axis's tilt it asks for, which leaves it less vertical thrust
     than the short tilt did, and the target is 1.5 m: 2.92 m and 1.206 x planned to the demand,
-    1.44 m under it and 1.051 x planned over it; since stop 42, its last second braked at the
-    constant deceleration to its target, 2.82 m and 1.199 x, 1.34 m and 1.042 x."""
+    1.44 m under it and 1.051 x planned over it; since stop 42, with its last second's vertical
+    thrust bounded by the limb (the constant deceleration to its target), 2.82 m and 1.199 x,
+    1.34 m and 1.042 x."""
     band = load_spec(SPEC_0).end.hover_band
     _, ratio_before, stop_before, *_ = _powered_end(78, 1, SPEC_0, target_above=0.0)
     _, ratio, stop, *_ = _powered_end(78, 1, SPEC_0)
@@ -506,8 +507,9 @@ def test_mpc_flying_the_tilt_it_asks_for_plans_to_rest_higher_over_the_demand():
     the plan had counted without knowing, is gone. Planned to rest 1 m over the demand (the target
     until stop 39) the fall stopped 2.36 m under it, outside the 2 m band, and the climb back cost
     0.1 of the optimum (1.150 x); planned 1.5 m over it (``target_above``'s default) it stops in
-    the band (-1.81 m, 1.048 x; since stop 42, its last second braked at the constant deceleration
-    to its target, -2.22 m and 1.131 x against -1.66 m and 1.040 x)."""
+    the band (-1.81 m, 1.048 x; since stop 42, with its last second's vertical thrust bounded by
+    the limb, the constant deceleration to its target, -2.22 m and 1.131 x against -1.66 m and
+    1.040 x)."""
     band = load_spec(SPEC).end.hover_band
     _, ratio_before, stop_before, *_ = _powered_end(233, 1, target_above=1.0)
     _, ratio, stop, *_ = _powered_end(233, 1)

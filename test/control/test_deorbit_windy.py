@@ -121,12 +121,22 @@ def test_mpc_planning_with_the_attitude_lag_brakes_the_drift_before_the_hover(mo
     assert fuel_lag < fuel_instant
 
 
-def _braking_end(case_index: int, **params: object) -> tuple[float, float]:
-    """Scheduled law, core-only, ``params`` over the sweep's: (altitude error [m] where the `hover`
-    phase begins, the attitude law's learnt share of the collective then)."""
-    for s, ctrl, _sim in _flown(case_index, 0, **params):
+class HoverBegins(NamedTuple):
+    """Where a core-only flight's `hover` phase began (:func:`_hover_begins`)."""
+
+    error: float  # [m] the altitude error over the demand
+    drift: float  # [m/s] the ground speed
+    ctrl: Any  # the law then
+
+
+def _hover_begins(case_index: int, controller_index: int = 0, **params: object) -> HoverBegins:
+    """The sweep's case flown core-only by its controller ``controller_index`` (0 scheduled, 1 MPC;
+    ``params`` over the sweep's) to the start of its `hover` phase."""
+    for s, ctrl, _sim in _flown(case_index, controller_index, **params):
         if ctrl.phase is Phase.HOVER:
-            return float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude, ctrl.descent.headroom.share
+            r = float(np.linalg.norm(s.r_W))
+            climb = float(s.v_W @ s.r_W) / r
+            return HoverBegins(r - c.MARS_RADIUS - DEMAND.altitude, float(np.linalg.norm(s.v_W - climb * s.r_W / r)), ctrl)
     raise AssertionError("no hover")
 
 
@@ -141,7 +151,8 @@ def test_braking_on_the_collective_the_attitude_law_leaves_stops_in_the_band(mon
     the air fitted under the chute (FallDrag: that scale over-predicts the drag below the terminal
     speed in a downdraft), it stops within the band."""
     band = load_spec(SPEC).end.hover_band
-    error, share = _braking_end(196)
+    error, _drift, ctrl = _hover_begins(196)
+    share = ctrl.descent.headroom.share
     monkeypatch.setattr(CollectiveHeadroom, "update", lambda self, *args: None)  # the full collective, as before
     fit_air = DeorbitController._fit_air
 
@@ -150,7 +161,8 @@ def test_braking_on_the_collective_the_attitude_law_leaves_stops_in_the_band(mon
         self.descent.air = None
 
     monkeypatch.setattr(DeorbitController, "_fit_air", scale_only)
-    error_full, share_full = _braking_end(196, stop_above=0.0)  # the limb aimed at the demand
+    error_full, _drift, ctrl_full = _hover_begins(196, stop_above=0.0)  # the limb aimed at the demand
+    share_full = ctrl_full.descent.headroom.share
     print(f"braking ends {error_full:+.2f} m (full collective, aimed at the demand, scale learnt) -> {error:+.2f} m (share {share:.3f} learnt)")
     assert share_full == 0.0 and share > 0.02
     assert error_full < -band
@@ -168,22 +180,11 @@ def test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band():
     the hover law climbed back (1.107 x the optimum in the replay). With the margin moved into
     height (0.96, the limb ending ``stop_above`` 1.75 m over the demand) it stops in the band."""
     band = load_spec(SPEC).end.hover_band
-    error, _share = _braking_end(261)
-    error_before, _share = _braking_end(261, brake_fraction=0.95, stop_above=1.0)
+    error = _hover_begins(261).error
+    error_before = _hover_begins(261, brake_fraction=0.95, stop_above=1.0).error
     print(f"braking ends {error_before:+.2f} m (0.95, 1 m over) -> {error:+.2f} m (0.96, 1.75 m over)")
     assert error_before < -band
     assert -band <= error <= band
-
-
-def _hover_start(case_index: int, **params: object) -> tuple[float, float]:
-    """Scheduled law, core-only, ``params`` over the sweep's: (altitude error [m], ground speed [m/s])
-    where the `hover` phase begins."""
-    for s, ctrl, _sim in _flown(case_index, 0, **params):
-        if ctrl.phase is Phase.HOVER:
-            up = s.r_W / float(np.linalg.norm(s.r_W))
-            climb = float(s.v_W @ up)
-            return float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude, float(np.linalg.norm(s.v_W - climb * up))
-    raise AssertionError("no hover")
 
 
 @pytest.mark.slow  # two flights, ~20 s
@@ -194,21 +195,13 @@ def test_thrust_axis_correction_takes_the_drift_out_by_the_hover(monkeypatch):
     of hover thrust to the band at rest (1.15 x the optimum's fuel). With integral action on the
     axis (DescentToAltitude.axis_bias) the hover begins within its own speed band."""
     spec = load_spec(SPEC)
-    error, drift = _hover_start(38)
+    error, drift, _ctrl = _hover_begins(38)
     monkeypatch.setattr(DescentToAltitude, "axis_bias", lambda self, *args: None)
-    error_plain, drift_plain = _hover_start(38)
+    error_plain, drift_plain, _ctrl = _hover_begins(38)
     print(f"ground speed at the hover {drift_plain:.3f} -> {drift:.3f} m/s (altitude error {error_plain:+.2f} -> {error:+.2f} m)")
     assert drift_plain > spec.end.hover_speed
     assert drift < spec.end.hover_speed
     assert abs(error) <= spec.end.hover_band
-
-
-def _mpc_braking_end(case_index: int, **params: object) -> tuple[float, Any]:
-    """MPC, core-only: (altitude error [m] where the `hover` phase begins, the law then)."""
-    for s, ctrl, _sim in _flown(case_index, 1, **params):
-        if ctrl.phase is Phase.HOVER:
-            return float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS - DEMAND.altitude, ctrl
-    raise AssertionError("no hover")
 
 
 @pytest.mark.slow  # two MPC flights, ~40 s
@@ -219,8 +212,8 @@ def test_mpc_with_its_air_fit_and_plan_reserve_stops_the_fall_in_the_band():
     the drag scale and wind fitted under the chute and 4 % of its bound kept in hand, it stops in
     the band; with the fit but no reserve it still rides its bound and stops under it."""
     band = load_spec(SPEC).end.hover_band
-    error, ctrl = _mpc_braking_end(188)
-    error_plain, _ = _mpc_braking_end(188, plan_reserve=0.0, reference_thrust=0.95)
+    error, _drift, ctrl = _hover_begins(188, 1)
+    error_plain = _hover_begins(188, 1, plan_reserve=0.0, reference_thrust=0.95).error
     print(f"braking ends {error_plain:+.2f} m (no reserve) -> {error:+.2f} m (reserve {ctrl.settings.plan_reserve})")
     assert ctrl.air is not None and ctrl.mpc is not None
     assert ctrl.mpc.drag.k < 0.9 * ctrl._drag_k  # the fitted scale (0.87) went into the QP's drag
@@ -334,13 +327,13 @@ def test_braking_takes_the_drift_out_before_its_shorter_end(monkeypatch):
     begins the hover with 0.225 m/s (0.336 with the old ``LAG`` and ``SETTLE``), and the law as it
     is with 0.055 m/s."""
     speed = load_spec(SPEC).end.hover_speed
-    _, drift_now = _hover_start(164)
+    drift_now = _hover_begins(164).drift
     then = {"brake_fraction": 0.95, "stop_above": 1.0}  # stop 31's limb
     monkeypatch.setattr(DescentToAltitude, "axial_at_ceiling", lambda self, m: None)
-    _, drift = _hover_start(164, **then)
+    drift = _hover_begins(164, **then).drift
     monkeypatch.setattr(DescentToAltitude, "LAG", 0.7)
     monkeypatch.setattr(DescentToAltitude, "SETTLE", 1.5)
-    _, drift_before = _hover_start(164, **then)
+    drift_before = _hover_begins(164, **then).drift
     print(f"ground speed as the hover begins: {drift_before:.3f} m/s (LAG 0.7 s, SETTLE 1.5 s) -> {drift:.3f} m/s; "
           f"the law as it is: {drift_now:.3f} m/s")
     assert drift < speed < drift_before

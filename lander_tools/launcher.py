@@ -93,6 +93,11 @@ DELIVERY_TIMEOUT = 10.0
 STARTUP_TIMEOUT = 30.0
 #: Wall seconds without a new state (while not paused) after which the flight is an error.
 STALL_TIMEOUT = 30.0
+#: The sim's ``lockstep_timeout`` [wall s] in a lockstep flight at speed 0 unless the user sets one:
+#: flat out there is no wall clock to keep, so the sim waits out an answer that takes seconds (a
+#: controller's design, the MPC's reference solve at the handover) and the flight stays the
+#: deterministic one; kept under STALL_TIMEOUT so a hung autopilot shows as counted timeouts.
+FLAT_OUT_LOCKSTEP_TIMEOUT = 20.0
 #: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
 STOP_GRACE = 5.0
 
@@ -423,6 +428,8 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
     })
     if controller is not None:
         sim_params["lockstep"] = plan.lockstep is not False
+        if sim_params["lockstep"] and plan.speed == 0:
+            sim_params.setdefault("lockstep_timeout", FLAT_OUT_LOCKSTEP_TIMEOUT)
     else:
         sim_params["lockstep"] = pilot_mode(plan, controller)
         # The sim alone holds the last command (the user's or the timeline's) for good.

@@ -49,10 +49,16 @@ def _nodes(context):
                   "lockstep": bool(controller) and arg["lockstep"].lower() == "true"}
     if not controller:
         sim_params["command_timeout"] = 0.0  # the sim alone holds the last command for good
+    # As `lander fly`: flat out in lockstep the sim waits out a slow answer; a params file's value wins.
+    defaults = []
+    if sim_params["lockstep"] and sim_params["speed"] == 0:
+        from lander_tools.launcher import FLAT_OUT_LOCKSTEP_TIMEOUT
+
+        defaults.append({"lockstep_timeout": FLAT_OUT_LOCKSTEP_TIMEOUT})
     if arg["duration"]:
         sim_params["end_time"] = float(arg["duration"])  # the sim stops itself there (docs/sim_node.md)
     sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
-               parameters=[*files, sim_params])
+               parameters=[*defaults, *files, sim_params])
     actions = [
         sim,
         RegisterEventHandler(OnProcessExit(target_action=sim, on_exit=[EmitEvent(event=Shutdown(reason="sim exited"))])),

@@ -16,8 +16,17 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
-from lander_tools.launcher import LaunchError, read_params_file
+from lander_tools.launcher import (
+    FLAT_OUT_LOCKSTEP_TIMEOUT,
+    SIM_NODE,
+    FlightPlan,
+    LaunchError,
+    node_commands,
+    read_params_file,
+    resolve_controller,
+)
 
 from .flightcheck import lander, lander_env
 from .spancheck import read_span
@@ -92,6 +101,27 @@ def test_a_wrong_params_section_is_one_line_and_exit_2_and_lander_autopilot_work
     res = _lander("fly", "hover-canted", "--speed", "0", "--duration", "0.5", "--params", str(good), "--no-progress")
     assert res.returncode == 0, res.stdout + res.stderr
     assert "demand altitude 520.0 m" in res.stdout, res.stdout  # the autopilot's start-up line
+
+
+def _sim_params(plan: FlightPlan, tmp_path: Path) -> dict:
+    node_commands(plan, resolve_controller(plan), tmp_path)
+    return yaml.safe_load((tmp_path / f"{SIM_NODE}.params.yaml").read_text())[SIM_NODE]["ros__parameters"]
+
+
+def test_flat_out_lockstep_waits_out_a_slow_answer_unless_the_user_says_otherwise(tmp_path: Path) -> None:
+    """`lander fly deorbit-200km --speed 0 --controller deorbit-mpc` advanced past 4 states at the
+    handover while the MPC solved its reference (~4.6 s wall, over the node's 1 s): not the
+    deterministic flight. At speed 0 the launcher now gives the sim a long lockstep timeout; at
+    other speeds the node's default stands, and a user's value wins at any speed."""
+    flat_out = FlightPlan(scene="deorbit-200km", controller="deorbit-mpc", speed=0.0)
+    assert _sim_params(flat_out, tmp_path)["lockstep_timeout"] == FLAT_OUT_LOCKSTEP_TIMEOUT > 1.0
+    assert "lockstep_timeout" not in _sim_params(FlightPlan(scene="hover-canted", speed=1.0), tmp_path)
+    assert "lockstep_timeout" not in _sim_params(FlightPlan(scene="deorbit-200km", controller="none", speed=0.0), tmp_path)
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("lander_sim:\n  ros__parameters:\n    lockstep_timeout: 0.5\n")
+    assert _sim_params(FlightPlan(scene="deorbit-200km", speed=0.0, params_file=mine), tmp_path)["lockstep_timeout"] == 0.5
+    scripted = FlightPlan(scene="deorbit-200km", speed=0.0, sim_params={"lockstep_timeout": 60.0})
+    assert _sim_params(scripted, tmp_path)["lockstep_timeout"] == 60.0
 
 
 # --- 4. names checked before anything starts --------------------------------------------------

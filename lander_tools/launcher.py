@@ -584,9 +584,6 @@ class _Supervisor:
         self.LanderState, self.FlightEvent = LanderState, FlightEvent
         self.state: Any = None
         self.states = 0
-        #: highest /lander/state sequence seen since the reset: the watch may lose states under load,
-        #: but the end state (sequence = the sim's count) must reach it, for the summary's last state
-        self.last_sequence = 0
         self.t = 0.0
         self.last_state_wall = time.monotonic()
         #: The sim's FLIGHT_ENDED, decoded (lander_ros.flight_span.FlightEnd): the flight is over.
@@ -634,7 +631,6 @@ class _Supervisor:
         self._count("/lander/state")
         self.state = msg
         self.states += 1
-        self.last_sequence = max(self.last_sequence, int(msg.sequence))
         self.t = stamp_to_seconds(msg.header.stamp)
         self.last_state_wall = time.monotonic()
         self.progress.update(self.t, msg.altitude)
@@ -993,7 +989,7 @@ def reset_flight(f: LaunchedFlight) -> list[Stop]:
         _arm(f.executor, sup, stops[0].t if stops else -1.0)
     for attempt in range(1, RESET_ATTEMPTS + 1):
         sup.received.clear()  # counts of the flight: from its reset on
-        sup.answered_first, sup.last_answer, sup.last_sequence, states0 = False, 0, 0, sup.states
+        sup.answered_first, sup.last_answer, states0 = False, 0, sup.states
         res = _call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
         if not res.success:
             raise LaunchError(f"the sim refused the reset: {res.message}")
@@ -1057,8 +1053,9 @@ def stop_nodes(f: LaunchedFlight) -> None:
             # may lose some on a loaded machine or a flat-out flight (it is the slower reader), and
             # waiting for them here only ran out the delivery timeout (10 s of "state lost" from the
             # autopilot, or of a flat-out flight's end). The watch needs the end state itself: the
-            # summary's last state (it had printed one 3-4 s of flight before a crash).
-            seen_end = sup.last_sequence >= published["/lander/state"]
+            # summary's last state (it had printed one 3-4 s of flight before a crash). One reliable
+            # writer delivers in order, so the latest state the watch holds is the highest.
+            seen_end = sup.state is not None and sup.state.sequence >= published["/lander/state"]
             return answered and seen_end and all(rec.counts.get(t, 0) >= n for t, n in wanted.items())
 
         deadline = time.monotonic() + DELIVERY_TIMEOUT

@@ -48,6 +48,8 @@ COUNTED_TOPICS: tuple[str, ...] = (
     "/lander/events",
     "/diagnostics",
 )
+#: The simulator's inputs (its subscriptions): per-thruster throttles and the wind (world frame).
+SIM_INPUT_TOPICS: tuple[str, ...] = ("/lander/throttle", "/lander/wind")
 #: Phases a touchdown may end the flight on (the ``end_on`` parameter).
 END_ON_CHOICES: tuple[str, ...] = ("landed", "crashed")
 

@@ -895,10 +895,10 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
 def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
     """Per topic this process subscribes to (recorder, launcher), the publishers it must have
     matched: the sim's outputs, the autopilot's and this launcher's own."""
-    from lander_ros.flight_span import COUNTED_TOPICS
+    from lander_ros.flight_span import COUNTED_TOPICS, SIM_INPUT_TOPICS
 
     pubs = {t: 1 for t in COUNTED_TOPICS}
-    pubs.update({"/lander/wind": 1, "/lander/demand_altitude": 1, "/lander/throttle": 1})
+    pubs.update({t: 1 for t in (*SIM_INPUT_TOPICS, "/lander/demand_altitude")})
     if f.controller is not None:
         pubs["/lander/throttle"] += 1
         pubs["/lander/events"] += 1

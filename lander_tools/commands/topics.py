@@ -1,5 +1,8 @@
 """``lander topics``: the running flight's topics and their types (``ros2 topic list -t``).
 
+The list is taken once the simulator's own topics (its outputs and inputs) are all in the graph,
+waiting up to ``--wait`` s: a node is discovered before its endpoints, and a list taken the moment
+the simulator appears can lack some of them. Any still missing then are named on stderr.
 No flight running: exit 3 after waiting for the simulator.
 """
 import argparse
@@ -12,11 +15,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from lander_ros.flight_span import COUNTED_TOPICS, SIM_INPUT_TOPICS
     from lander_tools.live.link import Outcome
     from lander_tools.live.verbs import run_verb
 
     def show(link):
-        rows = link.topics()
+        rows, missing = link.await_topics((*COUNTED_TOPICS, *SIM_INPUT_TOPICS), args.wait)
+        if missing:
+            print(f"lander topics: the simulator's {', '.join(missing)} not seen within {args.wait:g} s",
+                  file=sys.stderr, flush=True)
         width = max((len(n) for n, _ in rows), default=0)
         for name, types in rows:
             print(f"{name:<{width}}  {', '.join(types)}")

@@ -143,16 +143,27 @@ class FlightLink:
     def topics(self) -> list[tuple[str, list[str]]]:
         return sorted(self.node.get_topic_names_and_types())
 
-    def topic_type(self, topic: str, timeout: float = DISCOVERY_TIMEOUT) -> str:
-        """The type of ``topic`` once it appears; :class:`NoFlight` if it does not."""
+    def await_topics(self, topics: Sequence[str], timeout: float = DISCOVERY_TIMEOUT
+                     ) -> tuple[list[tuple[str, list[str]]], list[str]]:
+        """The graph's topics once every one of ``topics`` is in it with a type, or at ``timeout``
+        with those still missing: ``(rows, missing)``. A node is in the graph before all its
+        endpoints are (the node list and the endpoints are discovered apart), so a list taken
+        the moment the node appears can lack some of its topics."""
         deadline = time.monotonic() + timeout
         while True:
-            for name, types in self.node.get_topic_names_and_types():
-                if name == topic and types:
-                    return types[0]
-            if time.monotonic() > deadline:
-                raise NoFlight(f"topic {topic} not seen within {timeout:g} s (see 'lander topics')")
+            rows = self.topics()
+            seen = {name for name, types in rows if types}
+            missing = [t for t in topics if t not in seen]
+            if not missing or time.monotonic() > deadline:
+                return rows, missing
             time.sleep(0.02)
+
+    def topic_type(self, topic: str, timeout: float = DISCOVERY_TIMEOUT) -> str:
+        """The type of ``topic`` once it appears; :class:`NoFlight` if it does not."""
+        rows, missing = self.await_topics([topic], timeout)
+        if missing:
+            raise NoFlight(f"topic {topic} not seen within {timeout:g} s (see 'lander topics')")
+        return dict(rows)[topic][0]
 
     # --- services ---------------------------------------------------------------------------
 

@@ -1,8 +1,9 @@
 """``lander topics``: the running flight's topics and their types (``ros2 topic list -t``).
 
 The list is taken once the simulator's own topics (its outputs and inputs) are all in the graph,
-waiting up to ``--wait`` s: a node is discovered before its endpoints, and a list taken the moment
-the simulator appears can lack some of them. Any still missing then are named on stderr.
+waiting up to ``--wait`` s more once the simulator is seen (at most twice ``--wait`` in all): a
+node is discovered before its endpoints, and a list taken the moment the simulator appears can
+lack some of them. Any still missing then are named on stderr.
 No flight running: exit 3 after waiting for the simulator.
 """
 import argparse

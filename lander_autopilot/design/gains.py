@@ -89,11 +89,33 @@ def place_poles(A: np.ndarray, B: np.ndarray, poles: np.ndarray | list[complex])
         K = np.real_if_close(np.asarray(control.place_varga(A, B, p))).astype(float)
         method = "place_varga"
         if ctrb.controllable and multiplicity <= rank_b and not _placed(p, A, B, K):
-            V = np.linalg.svd(B)[2][:rank_b].T  # orthonormal basis of B's row space (m x r)
-            K = V @ np.asarray(control.place(A, B @ V, p))
+            K = _column_space_gain(A, B, p, rank_b)
             method = "place on the column space of B"
     K = np.real_if_close(K).astype(float)
     return GainDesign(K=K, method=method, requested=_sorted(p), poles=closed_loop_poles(A, B, K))
+
+
+def place_on_column_space(A: np.ndarray, B: np.ndarray, poles: np.ndarray | list[complex]) -> GainDesign:
+    """``K`` with ``eig(A - B K) = poles`` by ``control.place`` on the column space of ``B``.
+
+    ``B = B_r V^T`` with ``V`` an orthonormal basis of ``B``'s row space; ``K = V K_r`` is the
+    minimum-norm throttle allocation of the gain ``K_r`` placed for ``(A, B V)``. This is what
+    :func:`place_poles` falls back on when SB01BD misses; whether SB01BD misses a given pole set
+    depends on the machine's floating point, so the fallback is also callable (and tested) alone.
+    Needs a controllable pair and no pole repeated more than ``rank(B)`` times.
+    """
+    A, B = check_shapes(A, B)
+    p = np.asarray(poles, dtype=complex).reshape(-1)
+    K = np.real_if_close(_column_space_gain(A, B, p, int(np.linalg.matrix_rank(B)))).astype(float)
+    return GainDesign(K=K, method="place on the column space of B", requested=_sorted(p),
+                      poles=closed_loop_poles(A, B, K))
+
+
+def _column_space_gain(A: np.ndarray, B: np.ndarray, p: np.ndarray, rank_b: int) -> np.ndarray:
+    import control
+
+    V = np.linalg.svd(B)[2][:rank_b].T  # orthonormal basis of B's row space (m x r)
+    return V @ np.asarray(control.place(A, B @ V, p))
 
 
 # A placement that misses a requested pole by more than this (relative to the largest pole) has

@@ -15,7 +15,7 @@ import pytest
 
 from lander_interfaces.msg import FlightEvent
 from lander_sim.physics.constants import MARS_RADIUS
-from lander_tools.launcher import summary
+from lander_tools.fly.summary import summary
 
 from .flightcheck import FLIGHT_TOPICS, REPO, mcap_counts
 

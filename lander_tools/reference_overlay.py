@@ -328,7 +328,7 @@ def figure(flight: Flight, overlay: Overlay) -> Any:
                Line2D([], [], color="0.4", ls=":", label="handover (powered-descent)"),
                Line2D([], [], color="0.4", ls="-.", label="hover"),
                Line2D([], [], color="0.6", lw=0.8, label="demand altitude / thrust limit")]
-    ps.legend_outside(fig, handles, [h.get_label() for h in handles])
+    ps.legend_outside(fig, handles, [str(h.get_label()) for h in handles])
     return fig
 
 

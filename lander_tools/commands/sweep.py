@@ -101,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
     if args.replay is not None:
         if args.record is not None:
             return _replay_recorded(spec, args)
-        rows = [fl.fly_case(spec, ci, args.replay).row for ci in range(len(spec.controllers))]
-        print(json.dumps(output.jsonable(rows), indent=1) if args.json else "\n".join(_fmt_row(r) for r in rows))
+        replayed = [fl.fly_case(spec, ci, args.replay).row for ci in range(len(spec.controllers))]
+        print(json.dumps(output.jsonable(replayed), indent=1) if args.json else "\n".join(_fmt_row(r) for r in replayed))
         return 0
 
     if args.dask is not None:

@@ -289,7 +289,8 @@ def stop_nodes(f: LaunchedFlight) -> None:
             # summary's last state (it had printed one 3-4 s of flight before a crash). One reliable
             # writer delivers in order, so the latest state the watch holds is the highest.
             seen_end = sup.state is not None and sup.state.sequence >= published["/lander/state"]
-            return answered and seen_end and all(rec.counts.get(t, 0) >= n for t, n in wanted.items())
+            return answered and seen_end and all(rec is not None and rec.counts.get(t, 0) >= n
+                                                 for t, n in wanted.items())
 
         deadline = time.monotonic() + DELIVERY_TIMEOUT
         while not delivered() and time.monotonic() < deadline:

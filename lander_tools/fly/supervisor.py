@@ -97,18 +97,18 @@ class Supervisor:
         self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", LATCHED)
         self.pub_wind = n.create_publisher(Vector3Stamped, "/lander/wind", RELIABLE)
         self.pub_throttle = n.create_publisher(ThrottleCommand, "/lander/throttle", RELIABLE)
-        self.cli_reset = n.create_client(Reset, "/lander/reset")
-        self.cli_resume = n.create_client(Trigger, "/lander/resume")
-        self.cli_subscribers = n.create_client(Trigger, "/lander/subscribers")
-        self.cli_autopilot_matched = n.create_client(Trigger, "/autopilot/matched")
-        self.cli_stab = n.create_client(SetBool, "/lander/set_stabiliser")
-        self.cli_chute = n.create_client(Trigger, "/lander/deploy_parachute")
+        self.cli_reset: Any = n.create_client(Reset, "/lander/reset")
+        self.cli_resume: Any = n.create_client(Trigger, "/lander/resume")
+        self.cli_subscribers: Any = n.create_client(Trigger, "/lander/subscribers")
+        self.cli_autopilot_matched: Any = n.create_client(Trigger, "/autopilot/matched")
+        self.cli_stab: Any = n.create_client(SetBool, "/lander/set_stabiliser")
+        self.cli_chute: Any = n.create_client(Trigger, "/lander/deploy_parachute")
         self.cli_switch: Any = None
         if self.controller is not None:
             self.cli_switch = n.create_client(SwitchController, "/autopilot/switch_controller")
-            self.cli_ap_get = n.create_client(GetParameters, "/autopilot/get_parameters")
-            self.cli_sim_set = n.create_client(SetParameters, f"/{SIM_NODE}/set_parameters")
-            self.cli_sim_get = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
+            self.cli_ap_get: Any = n.create_client(GetParameters, "/autopilot/get_parameters")
+            self.cli_sim_set: Any = n.create_client(SetParameters, f"/{SIM_NODE}/set_parameters")
+            self.cli_sim_get: Any = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
             n.create_subscription(Clock, "/clock", self._on_clock, RELIABLE)
 
     def _create_watch(self) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -226,7 +227,7 @@ def compare_rows(core: dict[str, Any], ros: dict[str, Any], metrics: tuple[str, 
     return out
 
 
-def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str, Any]] | None = None,
+def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: Sequence[Any] | None = None,
                 out: Any = None, speed: float = 0.0) -> RosCheck:
     """Fly flights ``0..n-1`` (every controller) through the nodes, record each into ``folder``,
     compute their rows from the bags and compare with the core-only rows (flown here if not given)."""

@@ -9,6 +9,7 @@ Heavy imports (rclpy) happen in :func:`run`, so ``lander fly --help`` stays fast
 """
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -38,8 +39,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
     from lander_tools.fly.checks import check_plan
     from lander_tools.fly.phases import fly
     from lander_tools.fly.plan import EXIT_ERROR, FlightPlan, LaunchError

@@ -149,8 +149,6 @@ def start_nodes(f: LaunchedFlight) -> None:
     )
 
 
-
-
 def wait_until_matched(f: LaunchedFlight) -> None:
     """Phase 2: wait until every subscriber the flight needs is matched on every topic it needs.
 
@@ -282,12 +280,11 @@ def stop_nodes(f: LaunchedFlight) -> None:
         def delivered() -> bool:
             # In lockstep the autopilot answers the end state too: that answer belongs to the flight.
             answered = not sup.lockstep or sup.last_answer >= published["/lander/state"]
-            # The states counted where they are kept (the bag): this node's own watch subscription
-            # may lose some on a loaded machine or a flat-out flight (it is the slower reader), and
-            # waiting for them here only ran out the delivery timeout (10 s of "state lost" from the
-            # autopilot, or of a flat-out flight's end). The watch needs the end state itself: the
-            # summary's last state (it had printed one 3-4 s of flight before a crash). One reliable
-            # writer delivers in order, so the latest state the watch holds is the highest.
+            # The states are counted where they are kept (the bag): this node's own watch
+            # subscription may lose some on a loaded machine or a flat-out flight (it is the slower
+            # reader), so waiting for it to count them all would run out the delivery timeout. The
+            # watch needs the end state itself (the summary's last state); one reliable writer
+            # delivers in order, so the latest state the watch holds is the highest.
             seen_end = sup.state is not None and sup.state.sequence >= published["/lander/state"]
             return answered and seen_end and all(rec is not None and rec.counts.get(t, 0) >= n
                                                  for t, n in wanted.items())
@@ -299,7 +296,6 @@ def stop_nodes(f: LaunchedFlight) -> None:
     if sup is not None and sup.recorder is not None and f.executor is not None:
         # what the nodes flushed before they exited is still queued here
         sup.recorder.wait_quiet(0.2, 3.0, pause=lambda s: f.executor.spin_once(timeout_sec=s))
-
 
 
 def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
@@ -325,8 +321,6 @@ def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
         result.bag_check = "complete: every message published in the flight is in it"
 
 
-
-
 def _ended(f: LaunchedFlight) -> FlightResult:
     """The result of a flight that reached its end, as the sim announced it."""
     sup = f.sup
@@ -342,8 +336,6 @@ def _ended(f: LaunchedFlight) -> FlightResult:
 def _failed(f: LaunchedFlight, outcome: str, code: int, message: str) -> FlightResult:
     sup = f.sup
     return FlightResult(outcome, code, sup.t if sup else 0.0, sup.states if sup else 0, message)
-
-
 
 
 def _add_what_was_watched(f: LaunchedFlight, result: FlightResult) -> None:

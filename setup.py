@@ -14,8 +14,15 @@ PACKAGE = "mars_lander"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(include=["lander_sim*", "lander_autopilot*", "lander_tools*", "lander_ros*"]),
-    package_data={"lander_sim": ["scenes/*.yaml"], "lander_tools": ["live/web/*"]},
+    packages=find_packages(include=["lander_sim*", "lander_autopilot*", "lander_tools*", "lander_ros*", "lander_yaml*"]),
+    # py.typed: the packages' annotations are for their users' type checkers too (PEP 561).
+    package_data={
+        "lander_sim": ["scenes/*.yaml", "py.typed"],
+        "lander_autopilot": ["py.typed"],
+        "lander_tools": ["live/web/*", "py.typed"],
+        "lander_ros": ["py.typed"],
+        "lander_yaml": ["py.typed"],
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

@@ -80,7 +80,7 @@ def events_executor(context: Any = None) -> Any:
     standard executor, and ~26 us of Python per message against ~700 us: measured), else the
     standard single-threaded one. ``context``: None for the default context."""
     try:
-        from rclpy.experimental import EventsExecutor
+        from rclpy.experimental.events_executor import EventsExecutor
     except ImportError:
         from rclpy.executors import SingleThreadedExecutor
 

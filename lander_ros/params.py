@@ -20,6 +20,8 @@ from typing import Any
 
 import yaml
 
+from lander_yaml import read_yaml
+
 #: Parameters every ROS 2 node has: accepted anywhere, not checked here.
 ROS_BUILTIN = frozenset({"use_sim_time", "start_type_description_service"})
 
@@ -89,23 +91,42 @@ def check_value(specs: Mapping[str, ParamSpec], name: str, value: Any) -> str | 
 # --- the overrides a node is started with -----------------------------------------------------
 
 
-def params_file_overrides(path: str | Path, node: str, error: type[ValueError] = ValueError) -> dict[str, Any]:
-    """The ``ros__parameters`` a parameters file gives node ``node`` (its sections ``node``,
-    ``/node`` and ``/**``, later ones winning as rcl's do); ``error`` naming the file otherwise."""
-    from lander_sim.yaml_file import read_yaml  # the core's reader of a user's YAML file
+def node_sections(node: str) -> tuple[str, ...]:
+    """The sections of a parameters file that configure ``node``, in the order rcl applies them
+    (later ones win): ``/**`` (every node), ``node``, ``/node``."""
+    return ("/**", node, f"/{node}")
 
+
+def read_params_file(path: str | Path, error: type[ValueError] = ValueError,
+                     name: str | None = None) -> dict[str, dict[str, Any]]:
+    """Every section of a ROS parameters file with its ``ros__parameters``: ``{section: {name: value}}``.
+
+    The one reader of parameter files, for both nodes (:func:`params_file_overrides`) and
+    ``lander fly --params`` (which then checks the sections and names against both nodes' specs).
+    A section is a node's name (``node``, ``/node``) or ``/**`` and holds only a ``ros__parameters``
+    mapping; anything else is ``error`` naming the file (as ``name``, default the path) and the
+    section."""
     p = Path(path)
+    label = str(p) if name is None else name
     data = read_yaml(p, "parameters file", error)
     if not isinstance(data, dict):
-        raise error(f"{p}: expected a mapping with key {node!r} (or '/**')")
+        raise error(f"{label}: expected a mapping of sections (a node's name or '/**'), each holding ros__parameters")
+    sections: dict[str, dict[str, Any]] = {}
+    for key, section in data.items():
+        if not isinstance(section, dict) or set(section) != {"ros__parameters"} or not isinstance(
+                section["ros__parameters"], dict):
+            raise error(f"{label}: section {key!r} must hold only a 'ros__parameters' mapping")
+        sections[str(key)] = dict(section["ros__parameters"])
+    return sections
+
+
+def params_file_overrides(path: str | Path, node: str, error: type[ValueError] = ValueError) -> dict[str, Any]:
+    """The ``ros__parameters`` a parameters file gives node ``node`` (:func:`node_sections`, later
+    ones winning as rcl's do); ``error`` naming the file otherwise."""
+    sections = read_params_file(path, error)
     params: dict[str, Any] = {}
-    for key in ("/**", node, f"/{node}"):
-        section = data.get(key)
-        if section is None:
-            continue
-        if not isinstance(section, dict) or not isinstance(section.get("ros__parameters"), dict):
-            raise error(f"{p}: key {key!r} must hold a 'ros__parameters' mapping")
-        params.update(section["ros__parameters"])
+    for key in node_sections(node):
+        params.update(sections.get(key, {}))
     return params
 
 

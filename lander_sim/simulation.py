@@ -220,7 +220,7 @@ class Simulation:
         self.rejected[kind] = self.rejected.get(kind, 0) + 1
         return InputError(msg)
 
-    def set_throttles(self, throttles: Sequence[float]) -> None:
+    def set_throttles(self, throttles: Sequence[float] | np.ndarray) -> None:
         """Throttle per thruster, each in [0, 1]; held until changed. Forced to 0 once landed or out of fuel."""
         try:
             t = np.asarray(throttles, dtype=float).reshape(-1)

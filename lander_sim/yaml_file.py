@@ -1,33 +1,13 @@
-"""Reading a user's YAML file (scene, parameters, sweep, scripted flight) with errors that name it.
+"""Typed accessors for a parsed scene file, whose errors name the file and the key.
 
-Every configuration file goes through :func:`read_yaml`, so a missing file, a binary file and a
-YAML syntax error give the same kind of one-line message everywhere: the file, then what is wrong.
+The file itself is read by :func:`lander_yaml.read_yaml` (one reader for every user's YAML file);
+the scene loader and each model's own section parser (:mod:`lander_sim.physics.models.table`)
+walk the parsed mapping with :class:`Reader`.
 """
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
-
-import yaml
-
-
-def read_yaml(path: str | Path, what: str, error: type[ValueError]) -> Any:
-    """The parsed content of ``path``; raises ``error`` (a ``ValueError`` subclass) naming the file.
-
-    ``what`` says what the file should be (e.g. ``"scene file"``) for the unreadable case.
-    """
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise error(f"{p}: cannot read {what}: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise error(f"{p}: not a text (UTF-8) file: byte {exc.start} is {exc.object[exc.start]:#04x}") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise error(f"{p}: not valid YAML: {exc}") from None
 
 
 class Reader:

@@ -301,10 +301,10 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     # Step response: the last step to a hover, over its segment (module docstring).
     settling = overshoot = sse = hover_max = step = hd = None
     t_down = touchdown_time if touchdown_time is not None else math.inf
-    k = _hover_step(flight.demand, flight.demand_t, t_down)
-    if k is not None:
-        t0, hd = float(flight.demand_t[k]), float(flight.demand[k])
-        t1 = min(float(flight.demand_t[k + 1]) if k + 1 < len(flight.demand) else math.inf, t_down)
+    ks = _hover_step(flight.demand, flight.demand_t, t_down)
+    if ks is not None:
+        t0, hd = float(flight.demand_t[ks]), float(flight.demand[ks])
+        t1 = min(float(flight.demand_t[ks + 1]) if ks + 1 < len(flight.demand) else math.inf, t_down)
         # The step is measured from where the lander actually was when the demand changed.
         h0 = float(np.interp(t0, t, flight.altitude))
         step = hd - h0

@@ -1,6 +1,6 @@
 """The flown powered descent of a recorded de-orbit flight against the fuel-optimal reference.
 
-Issue 14's yardstick (docs/deorbit.md, "The fuel yardstick"): from the state at the handover to the
+The de-orbit flights' fuel yardstick (docs/deorbit.md, "The fuel yardstick"): from the state at the handover to the
 powered descent, the minimum fuel any thrust history within the vehicle's limits needs to come to
 rest at the demand altitude (:func:`lander_autopilot.guidance.fuel_optimal.solve`, lossless
 convexification with the chute's drag). ``lander analyse BAG --reference`` prints the flown fuel
@@ -328,7 +328,7 @@ def figure(flight: Flight, overlay: Overlay) -> Any:
                Line2D([], [], color="0.4", ls=":", label="handover (powered-descent)"),
                Line2D([], [], color="0.4", ls="-.", label="hover"),
                Line2D([], [], color="0.6", lw=0.8, label="demand altitude / thrust limit")]
-    ps.legend_outside(fig, handles, [h.get_label() for h in handles])
+    ps.legend_outside(fig, handles, [str(h.get_label()) for h in handles])
     return fig
 
 

@@ -24,16 +24,21 @@ A script file (``flights/*.yaml``)::
 
 In Python, build :class:`Script` directly and call :meth:`Script.run`. Errors name
 the file, the entry and the key (:class:`ScriptError`).
+
+Reading and checking a script is plain Python; :meth:`Script.run` imports the launcher
+(:mod:`lander_tools.fly.phases`, rclpy) when it flies.
 """
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lander_sim.yaml_file import read_yaml
-from lander_tools.launcher import ACTION_KINDS, Action, FlightPlan, FlightResult, fly
+from lander_tools.fly.checks import shipped_flights
+from lander_tools.fly.plan import ACTION_KINDS, Action, FlightPlan, FlightResult
+from lander_yaml import read_yaml
 
 _TOP_KEYS = {"name", "description", "scene", "controller", "controller_params", "speed", "lockstep",
              "sim", "autopilot", "record", "end", "timeline", "compose"}
@@ -65,7 +70,7 @@ class Script:
     source: Path | None = None
 
     def plan(self, record: Path | None = None, storage: str | None = None) -> FlightPlan:
-        """The launcher's :class:`~lander_tools.launcher.FlightPlan` of this script."""
+        """The launcher's :class:`~lander_tools.fly.plan.FlightPlan` of this script."""
         return FlightPlan(
             scene=self.scene,
             controller=self.controller,
@@ -86,6 +91,8 @@ class Script:
 
     def run(self, record: Path | None = None, **fly_kwargs: Any) -> FlightResult:
         """Fly the script (recording to ``record`` if given) and return how it ended."""
+        from lander_tools.fly.phases import fly
+
         return fly(self.plan(record), **fly_kwargs)
 
 
@@ -215,8 +222,6 @@ def load_script(path: str | Path) -> Script:
 
 def check_flight_path(arg: str | Path) -> None:
     """A ``.yaml`` argument that is no file: ScriptError naming it, with the closest shipped flight."""
-    import difflib
-
     p = Path(arg)
     if p.suffix not in (".yaml", ".yml") or p.is_file():
         return
@@ -225,7 +230,3 @@ def check_flight_path(arg: str | Path) -> None:
     hint = f"; did you mean {flights[close[0]]!r}?" if close else ""
     raise ScriptError(f"no such flight or scene file {str(arg)!r}{hint}")
 
-
-def shipped_flights() -> list[Path]:
-    """The scripted flights shipped in ``flights/``."""
-    return sorted((Path(__file__).resolve().parents[1] / "flights").glob("*.yaml"))

@@ -97,7 +97,7 @@ def _wanted_hashes() -> dict[str, str]:
 def out_of_date() -> list[str]:
     """Steps whose stamp is missing or differs; once one is out of date, all later ones are too."""
     wanted = _wanted_hashes()
-    stale = []
+    stale: list[str] = []
     for step in STEPS:
         stamp = _stamp(step)
         if stale or not stamp.exists() or stamp.read_text().strip() != wanted[step]:
@@ -263,7 +263,7 @@ def _do_steps(stale: list[str]) -> int:
     t0 = time.monotonic()
     # Debian packages the tests need beyond the venv (chromium for the student page's browser
     # test), installed with apt-get where we are root (CI's fresh machine); never fails the set-up.
-    import system_packages  # lander_tools/system_packages.py: standard library only
+    import system_packages  # type: ignore[import-not-found]  # lander_tools/system_packages.py, beside this script
 
     system_packages.ensure(_say)
     wanted = _wanted_hashes()

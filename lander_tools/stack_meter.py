@@ -174,7 +174,10 @@ def loop_figures(bag_path: Path) -> LoopFigures:
     moving = np.flatnonzero(t > 0.0)
     i0 = max(int(moving[0]) - 1, 0) if len(moving) else 0
     sim_s, wall_s = float(t[-1] - t[i0]), float(rx[-1] - rx[i0])
-    q = (lambda p: float(np.percentile(lat, p)) * 1e3) if len(lat) else (lambda p: float("nan"))
+
+    def q(p: float) -> float:  # latency percentile [ms]
+        return float(np.percentile(lat, p)) * 1e3 if len(lat) else float("nan")
+
     flying = rx[i0 + 1:]  # from the first step on (the reset-to-resume wait is no stall)
     gap = float(np.diff(flying).max()) * 1e3 if len(flying) > 1 else float("nan")
     return LoopFigures(sim_s, wall_s, sim_s / wall_s if wall_s > 0 else float("nan"), len(seq), missing,

@@ -5,7 +5,7 @@
     ros2 launch mars_lander fly.launch.py scene:=7 controller:=baseline params_file:=my.yaml
     ros2 launch mars_lander fly.launch.py scene:=free-spin controller:=none record:=out/spin duration:=30
 
-Mirrors ``lander fly`` (lander_tools/launcher.py), which does the same where ``launch`` is not
+Mirrors ``lander fly`` (lander_tools/fly/), which does the same where ``launch`` is not
 installed (ROS 2 from PyPI). Differences: the sim starts running rather than paused (a recording
 restarts it from t = 0 once matched), the whole launch shuts down when the sim node exits or the
 recording ends (``lander fly`` also ends on landing or crash), and there is no ``--compose``
@@ -52,7 +52,7 @@ def _nodes(context):
     # As `lander fly`: flat out in lockstep the sim waits out a slow answer; a params file's value wins.
     defaults = []
     if sim_params["lockstep"] and sim_params["speed"] == 0:
-        from lander_tools.launcher import FLAT_OUT_LOCKSTEP_TIMEOUT
+        from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT
 
         defaults.append({"lockstep_timeout": FLAT_OUT_LOCKSTEP_TIMEOUT})
     if arg["duration"]:

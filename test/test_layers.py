@@ -1,7 +1,8 @@
 """The layers (docs/architecture.md): dependencies point inward only, tools -> ROS shells ->
-controllers -> core, and what both nodes' shells share lives in ``lander_ros`` (neither node's
-package). Read from the source with ``ast`` (every import statement, also those inside
-functions), so a late import cannot hide an arrow pointing outward."""
+controllers -> core, what both nodes' shells share lives in ``lander_ros`` (neither node's
+package) and the YAML reader every layer uses in ``lander_yaml``, below them all. Read from the
+source with ``ast`` (every import statement, also those inside functions), so a late import
+cannot hide an arrow pointing outward."""
 from __future__ import annotations
 
 import ast
@@ -15,6 +16,7 @@ ROS = ("rclpy", "lander_interfaces", "std_msgs", "geometry_msgs", "nav_msgs", "s
 CORE = ("lander_sim/physics", "lander_sim/integrators", "lander_sim/scenes", "lander_sim/fast",
         "lander_sim/simulation.py", "lander_sim/errors.py", "lander_sim/yaml_file.py")
 CONTROL = ("lander_autopilot/controllers", "lander_autopilot/design", "lander_autopilot/guidance")
+PROJECT = ("lander_sim", "lander_ros", "lander_autopilot", "lander_tools", "lander_yaml")
 
 
 def _modules(*paths: str) -> list[Path]:
@@ -61,8 +63,10 @@ def _outward(paths: tuple[str, ...], forbidden: tuple[str, ...]) -> list[str]:
                  id="the autopilot: nothing of the simulator's shell (shared parts are lander_ros's)"),
     pytest.param(("lander_sim",), ("lander_autopilot", "lander_tools"),
                  id="the simulator: nothing of the autopilot or the tools"),
-    pytest.param(("lander_ros",), ("lander_sim.ros", "lander_sim.node", "lander_autopilot", "lander_tools"),
-                 id="lander_ros: neither node's shell (the plain-Python core is everyone's)"),
+    pytest.param(("lander_ros",), ("lander_sim", "lander_autopilot", "lander_tools"),
+                 id="lander_ros: neither node's package"),
+    pytest.param(("lander_yaml",), (*ROS, *(p for p in PROJECT if p != "lander_yaml")),
+                 id="lander_yaml: below every layer (PyYAML only)"),
 ])
 def test_dependencies_point_inward(paths: tuple[str, ...], forbidden: tuple[str, ...]) -> None:
     assert _outward(paths, forbidden) == []

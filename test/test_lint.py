@@ -1,7 +1,8 @@
 """Lint and types, part of the test suite so that `./dev test` (and CI, which runs exactly that)
 fails on a violation. The rule sets and their reasons are in pyproject.toml: ruff (pycodestyle,
 pyflakes, bugbear, pyupgrade, isort) over the whole tree; mypy --strict over the core (physics,
-integrators, scenes, simulation, compiled kernels) and the design library."""
+integrators, scenes, simulation, compiled kernels), the design library, the nodes' shared helpers
+(lander_ros), the YAML reader (lander_yaml) and the tools (lander_tools)."""
 from __future__ import annotations
 
 import subprocess
@@ -20,7 +21,7 @@ def test_ruff_finds_nothing() -> None:
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-def test_mypy_strict_on_the_core_and_design_library_finds_nothing() -> None:
+def test_mypy_strict_on_the_core_the_design_library_and_the_tools_finds_nothing() -> None:
     r = _run("mypy")  # files and options: pyproject.toml [tool.mypy]
     assert r.returncode == 0, r.stdout + r.stderr
     assert "Success: no issues found" in r.stdout

@@ -23,7 +23,8 @@ from lander_sim.physics.state import AttitudeMode, pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
-from lander_sim.yaml_file import Reader, read_yaml
+from lander_sim.yaml_file import Reader
+from lander_yaml import read_yaml
 
 SCENE_DIR = Path(__file__).resolve().parent
 

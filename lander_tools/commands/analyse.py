@@ -15,8 +15,11 @@ demand, no feasible descent) is a one-line error, exit 2.
 Heavy imports (numpy, matplotlib, rosbags, cvxpy) happen in :func:`run`.
 """
 
+from __future__ import annotations
+
 import argparse
 from pathlib import Path
+from typing import Any
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if args.scene is not None and not args.reference:
         print("lander analyse: --scene is used only with --reference", file=sys.stderr)
         return 2
-    flights = []
+    flights: list[Flight] = []
     for path in args.bags:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", BagWarning)
@@ -80,14 +83,15 @@ def run(args: argparse.Namespace) -> int:
     return rc
 
 
-def _references(flights: list, paths: list[Path], scene: str | None) -> tuple[int, list]:
+def _references(flights: list[Any], paths: list[Path], scene: str | None) -> tuple[int, list[Any]]:
     """Each flight's :class:`~lander_tools.reference_overlay.Overlay` (None where it does not
     apply or cannot be built: one line on stderr each); exit 2 if any could not be built."""
     import sys
 
     from lander_tools import reference_overlay as ro
 
-    rc, out = 0, []
+    rc = 0
+    out: list[Any] = []
     for f, path in zip(flights, paths):
         try:
             setup = ro.prepare(f, scene)  # quick: what does not apply or cannot be built is told at once
@@ -108,7 +112,7 @@ def _name(path: Path, taken: list[str]) -> str:
     return name if name not in taken else f"{name}#{len(taken) + 1}"
 
 
-def _print_span(path: Path, bag) -> None:
+def _print_span(path: Path, bag: Any) -> None:
     """Each bag's span on stderr (stdout stays the table or JSON); a bag that is not one whole
     flight is flagged (lander_tools.bagspan)."""
     import sys

@@ -3,7 +3,10 @@
 Waits for the topic to appear (no flight / no such topic: exit 3); ``--once`` exits 0 after
 the first message, else runs until Ctrl-C.
 """
+from __future__ import annotations
+
 import argparse
+from typing import Any
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,11 +29,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.topic.startswith("/"):
         raise ValueError(f"topic names are absolute (start with '/'), got {args.topic!r}")
 
-    def echo(link):
+    def echo(link: Any) -> Outcome:
         msgtype = link.topic_type(args.topic, args.wait)
         got, done = threading.Event(), threading.Event()
 
-        def show(msg):
+        def show(msg: Any) -> None:
             if args.once and got.is_set():
                 return
             try:

@@ -4,11 +4,12 @@
 brings its own controller, timeline and end condition. Scene, controller and flight names and
 the ``--params`` file are checked before anything starts (one error line, the closest name
 offered). Exit status: 0 landed or time limit, 1 crashed, 2 error, 3 the bag misses messages,
-130 interrupted (see :mod:`lander_tools.launcher`).
-Heavy imports (rclpy) happen in :func:`run`.
+130 interrupted (see :mod:`lander_tools.fly`).
+Heavy imports (rclpy) happen in :func:`run`, so ``lander fly --help`` stays fast.
 """
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -38,16 +39,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
-    from lander_tools.launcher import (
-        EXIT_ERROR,
-        FlightPlan,
-        LaunchError,
-        check_plan,
-        fly,
-        summary,
-    )
+    from lander_tools.fly.checks import check_plan
+    from lander_tools.fly.phases import fly
+    from lander_tools.fly.plan import EXIT_ERROR, FlightPlan, LaunchError
+    from lander_tools.fly.summary import summary
     from lander_tools.progress import Progress
     from lander_tools.scripted import (
         ScriptError,

@@ -101,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
     if args.replay is not None:
         if args.record is not None:
             return _replay_recorded(spec, args)
-        rows = [fl.fly_case(spec, ci, args.replay).row for ci in range(len(spec.controllers))]
-        print(json.dumps(output.jsonable(rows), indent=1) if args.json else "\n".join(_fmt_row(r) for r in rows))
+        replayed = [fl.fly_case(spec, ci, args.replay).row for ci in range(len(spec.controllers))]
+        print(json.dumps(output.jsonable(replayed), indent=1) if args.json else "\n".join(_fmt_row(r) for r in replayed))
         return 0
 
     if args.dask is not None:
@@ -168,9 +168,10 @@ def _replay_recorded(spec: Any, args: argparse.Namespace) -> int:
     from pathlib import Path
 
     try:
-        from lander_tools import launcher
-    except ImportError:
-        return _fail("--record: lander_tools.launcher (the `lander fly` path) is not installed", EXIT_NOT_AVAILABLE)
+        from lander_tools.fly.phases import fly  # the `lander fly` path: rclpy
+    except ImportError as exc:
+        return _fail(f"--record needs the ROS environment (run it with ./dev sweep ...): {exc}", EXIT_NOT_AVAILABLE)
+    from lander_tools.fly.summary import summary
     from lander_tools.sweep.ros_path import plan_for_case
 
     code = 0
@@ -178,10 +179,7 @@ def _replay_recorded(spec: Any, args: argparse.Namespace) -> int:
         for ci, choice in enumerate(spec.controllers):
             bag = Path(args.record) if len(spec.controllers) == 1 else Path(f"{args.record}-{choice.label}")
             plan = plan_for_case(spec, ci, args.replay, Path(tmp), bag)  # NotRepresentable is a ValueError
-            try:
-                result = launcher.fly(plan)
-            except ImportError as exc:
-                return _fail(f"--record needs the ROS environment (run it with ./dev sweep ...): {exc}", EXIT_NOT_AVAILABLE)
-            print(launcher.summary(result))
+            result = fly(plan)
+            print(summary(result))
             code = max(code, result.exit_code)
     return code

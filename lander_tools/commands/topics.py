@@ -6,7 +6,10 @@ node is discovered before its endpoints, and a list taken the moment the simulat
 lack some of them. Any still missing then are named on stderr.
 No flight running: exit 3 after waiting for the simulator.
 """
+from __future__ import annotations
+
 import argparse
+from typing import Any
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
     from lander_tools.live.link import Outcome
     from lander_tools.live.verbs import run_verb
 
-    def show(link):
+    def show(link: Any) -> Outcome:
         rows, missing = link.await_topics((*COUNTED_TOPICS, *SIM_INPUT_TOPICS), args.wait)
         if missing:
             print(f"lander topics: the simulator's {', '.join(missing)} not seen within {args.wait:g} s",

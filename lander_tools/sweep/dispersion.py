@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import zlib
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -123,7 +124,7 @@ class FlightCase:
 PARAMETER_COLUMNS = tuple(FlightCase(0, 0).parameters())
 
 
-def _draw(spec: SweepSpec, index: int, name: str, dist: Distribution | None, size: int | None = None):
+def _draw(spec: SweepSpec, index: int, name: str, dist: Distribution | None, size: int | None = None) -> Any:
     if dist is None:
         return 0.0 if size is None else np.zeros(size)
     return dist.sample(stream(spec.seed, index, name), size)

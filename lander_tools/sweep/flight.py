@@ -306,7 +306,8 @@ def _touchdown_speed(sim: Any, v_before: np.ndarray) -> tuple[float, dict[str, A
     for ev in sim.drain_events():
         vals = getattr(ev, "values", {}) or {}
         if "descent_rate" in vals and "ground_speed" in vals:
-            td = {k: float(vals[k]) for k in ("descent_rate", "ground_speed", "tilt_deg", "fuel_left") if k in vals}
+            td: dict[str, Any] = {k: float(vals[k]) for k in ("descent_rate", "ground_speed", "tilt_deg", "fuel_left")
+                                  if k in vals}
             td["classification"] = classes.get(getattr(ev.kind, "value", str(ev.kind)), "crash")
             return math.hypot(float(vals["descent_rate"]), float(vals["ground_speed"])), td
     return float(np.linalg.norm(v_before)), {}

@@ -110,7 +110,7 @@ def band_entry_fuel(before: BandSample | None, at: BandSample, band: float, spee
     1.3 %, mean 0.5 % of the optimum); against that, the optimum at rest at the demand needs 0.5-0.9 %
     more than one ending within the band's tolerance. The two offset: over the sweeps' 800 flights the
     like-for-like ratio is 0.1-0.2 % over ``fuel_ratio`` in the mean, -0.4 to +0.8 % per flight
-    (docs/deorbit.md, "The band's entry and the hover's tolerance (stop 38)").
+    (docs/deorbit.md, "The band's entry and the hover's tolerance").
 
     The throttles are held over the period, so the fuel falls linearly between the two instants; the
     altitude error is taken as linear too, and so is the speed's magnitude, which puts the speed's

@@ -46,14 +46,14 @@ class _Block:
         self.n = len(rows)
         self.cols = {k: _column([r[k] for r in rows]) for k in keys}
 
-    def __getstate__(self) -> tuple:
+    def __getstate__(self) -> tuple[Any, ...]:
         return self.keys, self.cols, self.n
 
-    def __setstate__(self, state: tuple) -> None:
+    def __setstate__(self, state: tuple[Any, ...]) -> None:
         self.keys, self.cols, self.n = state
 
 
-class Row(Mapping):
+class Row(Mapping[str, Any]):
     """One row of a :class:`RowTable`: a read-only mapping (pickles, and prints, as a dict)."""
 
     __slots__ = ("_b", "_i")
@@ -76,11 +76,11 @@ class Row(Mapping):
     def __repr__(self) -> str:
         return repr(dict(self))
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(self) -> tuple[Any, ...]:
         return dict, (dict(self),)
 
 
-class RowTable(Sequence):
+class RowTable(Sequence[Any]):
     """A sweep's rows as compact columns (see the module docstring); ``rows[i]`` is a :class:`Row`."""
 
     def __init__(self, rows: Iterable[Mapping[str, Any]] = ()) -> None:

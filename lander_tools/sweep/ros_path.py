@@ -2,7 +2,7 @@
 
 A case becomes a scene file (:mod:`lander_tools.sweep.case_scene`: dispersed initial state, true
 vehicle, thruster failure, mean wind and seeded gusts, all inside the simulator) plus a timeline of
-demand altitudes, flown by :mod:`lander_tools.launcher` with both nodes in lockstep at full speed
+demand altitudes, flown by :mod:`lander_tools.fly` with both nodes in lockstep at full speed
 and recorded; :func:`row_from_bag` reduces the bag to the very same :class:`Samples` and metrics
 as the core-only loop, and :func:`through_ros` compares the two.
 
@@ -19,13 +19,15 @@ from __future__ import annotations
 import math
 import re
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from lander_tools.sweep.case_scene import NotRepresentable, nominal_scene, write_case_scene
+from lander_tools.fly.plan import Action, FlightPlan
+from lander_tools.sweep.case_scene import NotRepresentable, gust_seed, nominal_scene, write_case_scene
 from lander_tools.sweep.dispersion import draw_case
 from lander_tools.sweep.flight import control_period, demand_schedule, make_row
 from lander_tools.sweep.metrics import HoverHold, Samples, altitude_and_tilt
@@ -56,11 +58,8 @@ def scene_file_for_case(spec: SweepSpec, index: int, folder: Path) -> Path:
 def plan_for_case(
     spec: SweepSpec, controller_index: int, index: int, folder: Path, record: Path | None,
     topics: tuple[str, ...] | None = None,
-) -> Any:
-    """A :class:`lander_tools.launcher.FlightPlan` flying case ``index`` in lockstep, as fast as possible."""
-    from lander_tools.launcher import Action, FlightPlan
-    from lander_tools.sweep.case_scene import gust_seed
-
+) -> FlightPlan:
+    """A :class:`lander_tools.fly.plan.FlightPlan` flying case ``index`` in lockstep, as fast as possible."""
     scene0 = nominal_scene(spec)
     case = draw_case(spec, index, scene0.vehicle.n_thrusters)
     scene_path = write_case_scene(spec, case, folder)
@@ -69,7 +68,7 @@ def plan_for_case(
     timeline = [Action(0.0, "demand_altitude", before)]
     if after != before:
         # Exact in sim time: the launcher pauses the sim at t_change and waits until the autopilot
-        # has the new demand before the state at t_change goes out (lander_tools.launcher).
+        # has the new demand before the state at t_change goes out (lander_tools.fly.timeline).
         timeline.append(Action(t_change, "demand_altitude", after))
     choice = spec.controllers[controller_index]
     seed = gust_seed(case) if case.wind_gust else (scene0.gust.seed if scene0.gust is not None else 0)
@@ -228,13 +227,14 @@ def compare_rows(core: dict[str, Any], ros: dict[str, Any], metrics: tuple[str, 
     return out
 
 
-def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str, Any]] | None = None,
+def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: Sequence[Any] | None = None,
                 out: Any = None, speed: float = 0.0) -> RosCheck:
     """Fly flights ``0..n-1`` (every controller) through the nodes, record each into ``folder``,
     compute their rows from the bags and compare with the core-only rows (flown here if not given)."""
     import io
 
-    from lander_tools import launcher
+    from lander_tools.fly.phases import fly  # the `lander fly` path: rclpy
+    from lander_tools.fly.summary import summary
     from lander_tools.sweep.flight import fly_case
 
     folder = Path(folder)
@@ -259,13 +259,13 @@ def through_ros(spec: SweepSpec, n: int, folder: Path, core_rows: list[dict[str,
             plan = plan_for_case(spec, ci, i, folder, bag, topics=TOPICS)
             plan.speed = speed
             w0 = time.perf_counter()
-            result = launcher.fly(plan, out=log if out is None else out)
+            result = fly(plan, out=log if out is None else out)
             check.ros_wall += time.perf_counter() - w0
-            check.outcomes.append(f"flight {i}, attempt {attempt + 1}: " + launcher.summary(result))
+            check.outcomes.append(f"flight {i}, attempt {attempt + 1}: " + summary(result))
             if result.outcome != "error":
                 break  # an error is the nodes failing to start or talk (start-up race): one retry, reported
         if result.outcome not in ("time-limit", "landed", "crashed"):
-            check.mismatches.append(f"flight {i}: the ROS flight failed: {launcher.summary(result)}\n{log.getvalue()[-2000:]}")
+            check.mismatches.append(f"flight {i}: the ROS flight failed: {summary(result)}\n{log.getvalue()[-2000:]}")
             continue
         ros = row_from_bag(spec, ci, i, bag)
         check.ros_rows.append(ros)

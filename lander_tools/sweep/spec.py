@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from lander_sim.yaml_file import read_yaml
+from lander_yaml import read_yaml
 
 
 class SweepSpecError(ValueError):

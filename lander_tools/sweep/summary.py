@@ -66,7 +66,7 @@ class MetricStats:
     max: float
 
 
-def metric_stats(values: Iterable[float]) -> MetricStats:
+def metric_stats(values: Iterable[float | None]) -> MetricStats:
     a = np.asarray([v for v in values if v is not None], dtype=float)
     a = a[np.isfinite(a)]
     if a.size == 0:
@@ -223,11 +223,11 @@ def format_summary(summaries: Sequence[ControllerSummary], comparisons: Sequence
                     more = len(c.outside) - NAMED_OUTSIDE
                     line += f" (outside: {named}" + (f" and {more} more" if more > 0 else "") + ")"
                 lines.append(line)
-    for c in comparisons:
+    for cmp in comparisons:
         lines.append(
-            f"compare {c.b} vs {c.a} on {c.pairs} shared cases: both ok {c.both_succeeded}, "
-            f"only {c.a} ok {c.only_a}, only {c.b} ok {c.only_b}, both failed {c.both_failed}"
+            f"compare {cmp.b} vs {cmp.a} on {cmp.pairs} shared cases: both ok {cmp.both_succeeded}, "
+            f"only {cmp.a} ok {cmp.only_a}, only {cmp.b} ok {cmp.only_b}, both failed {cmp.both_failed}"
         )
-        lines.append("  median difference (" + c.b + " - " + c.a + "): "
-                     + ", ".join(f"{k} {v:.4g} {metric_unit(k)}" for k, v in c.median_difference.items()))
+        lines.append("  median difference (" + cmp.b + " - " + cmp.a + "): "
+                     + ", ".join(f"{k} {v:.4g} {metric_unit(k)}" for k, v in cmp.median_difference.items()))
     return "\n".join(lines)

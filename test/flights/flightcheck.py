@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from lander_tools.bagio import Bag, read_bag
-from lander_tools.launcher import FlightResult
+from lander_tools.fly.plan import FlightResult
 from lander_tools.scripted import load_script
 
 from .spancheck import check_span

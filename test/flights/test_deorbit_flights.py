@@ -1,4 +1,4 @@
-"""Issue 14 through the ROS nodes: `flights/deorbit-200km-mpc-to-landing.yaml` (the 200 km orbit to the
+"""The de-orbit to a landing through the ROS nodes: `flights/deorbit-200km-mpc-to-landing.yaml` (the 200 km orbit to the
 500 m hover with `deorbit-mpc`, then a landing on demand) flown by the launcher in lockstep,
 recorded, and asserted from its bag with the independent `mcap` + `mcap-ros2-support` reader: the
 phases in order on /lander/events, the hover held, a safe touchdown, the MPC's solve times in the
@@ -15,7 +15,7 @@ import pytest
 
 from lander_interfaces.msg import FlightEvent
 from lander_sim.physics.constants import MARS_RADIUS
-from lander_tools.launcher import summary
+from lander_tools.fly.summary import summary
 
 from .flightcheck import FLIGHT_TOPICS, REPO, mcap_counts
 

@@ -20,14 +20,11 @@ import pytest
 
 from lander_sim.scenes import list_scenes, load_scene
 from lander_tools.bagio import read_bag
-from lander_tools.launcher import (
-    FlightPlan,
-    FlightResult,
-    fly,
-    resolve_controller,
-    summary,
-)
-from lander_tools.scripted import load_script, shipped_flights
+from lander_tools.fly.checks import resolve_controller, shipped_flights
+from lander_tools.fly.phases import fly
+from lander_tools.fly.plan import FlightPlan, FlightResult
+from lander_tools.fly.summary import summary
+from lander_tools.scripted import load_script
 
 from .flightcheck import REPO, lander
 from .spancheck import check_span

@@ -9,7 +9,7 @@ import pytest
 
 from lander_autopilot.design.translational import local_frame
 from lander_tools.analysis import EV_LANDED, Flight, metrics
-from lander_tools.launcher import summary
+from lander_tools.fly.summary import summary
 from lander_tools.sweep.ros_path import through_ros
 from lander_tools.sweep.spec import load_spec
 

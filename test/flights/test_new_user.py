@@ -18,15 +18,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from lander_tools.launcher import (
-    FLAT_OUT_LOCKSTEP_TIMEOUT,
-    SIM_NODE,
-    FlightPlan,
-    LaunchError,
-    node_commands,
-    read_params_file,
-    resolve_controller,
-)
+from lander_tools.fly.checks import read_params_file, resolve_controller
+from lander_tools.fly.plan import SIM_NODE, FlightPlan, LaunchError
+from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT, node_commands
 
 from .flightcheck import lander, lander_env
 from .spancheck import read_span

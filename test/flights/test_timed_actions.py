@@ -12,7 +12,8 @@ from lander_autopilot.ros.config import scene_autopilot
 from lander_autopilot.ros.convert import state_view
 from lander_ros.stamps import stamp_to_seconds
 from lander_sim.scenes import load_scene
-from lander_tools.launcher import Action, plan_stops
+from lander_tools.fly.plan import Action
+from lander_tools.fly.timeline import plan_stops
 from lander_tools.scripted import parse_script
 
 from .flightcheck import FLIGHT_TOPICS, check_bag

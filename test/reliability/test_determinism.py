@@ -259,7 +259,9 @@ def _start_up_report(payload: bytes) -> bool:
 def _fly_twice(tmp_path: Path, controller: str | None) -> tuple[dict[str, list[bytes]], dict[str, list[bytes]]]:
     import os
 
-    from lander_tools.launcher import FlightPlan, fly, summary
+    from lander_tools.fly.phases import fly
+    from lander_tools.fly.plan import FlightPlan
+    from lander_tools.fly.summary import summary
 
     runs = []
     for k in range(2):

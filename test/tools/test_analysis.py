@@ -171,7 +171,7 @@ def test_plots_table_json_and_comparison(tmp_path: Path) -> None:
 
 
 def test_demand_in_force_comes_from_the_autopilot_status_and_is_timed_when_flown(tmp_path: Path) -> None:
-    # Issue 17 item 2: the scene's demand is never published on /lander/demand_altitude; the status
+    # The scene's demand is never published on /lander/demand_altitude; the status
     # carries it from the first state. A demand published at 5.00 s is flown from the next control
     # instant (5.02 s here), which is when the step starts for the controller.
     t = np.arange(0, 20, DT)

@@ -1,5 +1,5 @@
 """`lander analyse --reference`: a de-orbit flight's powered descent against the fuel-optimal
-reference from its handover state (issue 14; lander_tools/reference_overlay.py), on a real bag.
+reference from its handover state (lander_tools/reference_overlay.py), on a real bag.
 
 The bag. A whole de-orbit recorded through the ROS nodes takes many minutes, and no flight can start
 at the handover through them: the node builds the scene's `deorbit` controller in its slew and no

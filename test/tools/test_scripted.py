@@ -6,9 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from lander_tools.launcher import FlightPlan, LaunchError, pilot_mode
+from lander_tools.fly.checks import shipped_flights
+from lander_tools.fly.plan import FlightPlan, LaunchError, pilot_mode
 from lander_tools.progress import Progress
-from lander_tools.scripted import ScriptError, is_script, load_script, parse_script, shipped_flights
+from lander_tools.scripted import ScriptError, is_script, load_script, parse_script
 
 GOOD = {"scene": "hover", "end": {"time": 10}}
 

@@ -22,6 +22,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from lander_tools.bagio import message_class
+
 #: Wall seconds a CLI verb waits for the flight's nodes to appear (discovery takes up to ~3 s with
 #: several processes starting on 2 cores: /work/shared/notes/ros2-from-pypi.md).
 DISCOVERY_TIMEOUT = 3.0
@@ -57,13 +59,6 @@ def message_to_dict(msg: Any) -> Any:
     if isinstance(msg, bytes):
         return list(msg)
     return msg
-
-
-def message_class(msgtype: str) -> Any:
-    """The rclpy class of ``pkg/msg/Name`` (or ``pkg/srv/Name``)."""
-    from lander_tools.recorder import _message_class
-
-    return _message_class(msgtype)
 
 
 class FlightLink:

@@ -223,7 +223,8 @@ def _extrapolating_interp(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.n
     # Clock messages arrive in order; holding the last known time beyond the ends is the
     # best estimate of "what the recorder had seen".
     order = np.argsort(xp, kind="stable")
-    return np.interp(x, xp[order], fp[order])
+    out: np.ndarray = np.interp(x, xp[order], fp[order])
+    return out
 
 
 def _flatten(msg: Any, prefix: str, cols: dict[str, list[Any]]) -> None:

@@ -150,10 +150,15 @@ class Recorder:
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
         self._opened.wait()
-        if self._error is not None:  # the bag could not be created: nothing to record into
+        error = self._startup_error()
+        if error is not None:  # the bag could not be created: nothing to record into
             self._shutdown_node()
-            raise self._error
+            raise error
         self._timer = self.node.create_timer(discovery_period, self.discover)
+
+    def _startup_error(self) -> BaseException | None:
+        """What the recorder's thread met creating the bag (None: the bag is open)."""
+        return self._error
 
     def _run(self) -> None:
         """The recorder thread: open the bag, serve the recorder's node until :meth:`close` (or the

@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parent.parent
 ROS = ("rclpy", "lander_interfaces", "std_msgs", "geometry_msgs", "nav_msgs", "sensor_msgs", "std_srvs",
        "rosgraph_msgs", "diagnostic_msgs", "visualization_msgs", "rcl_interfaces", "builtin_interfaces", "foxglove")
 CORE = ("lander_sim/physics", "lander_sim/integrators", "lander_sim/scenes", "lander_sim/fast",
-        "lander_sim/simulation.py", "lander_sim/errors.py", "lander_sim/yaml_file.py")
+        "lander_sim/simulation.py", "lander_sim/errors.py", "lander_sim/yaml_file.py", "lander_sim/look.py")
 CONTROL = ("lander_autopilot/controllers", "lander_autopilot/design", "lander_autopilot/guidance")
 
 

@@ -20,7 +20,7 @@ from lander_sim.integrators.base import Integrator
 from lander_sim.physics import rotation
 from lander_sim.physics.dynamics import LanderDynamics
 from lander_sim.physics.events import Event, EventKind, Phase
-from lander_sim.physics.models import Atmosphere, ChuteStatus, ForceModel, Ground, Inputs, Parachute
+from lander_sim.physics.models import Air, ChuteStatus, ForceModel, Inputs, Parachute, Surface
 from lander_sim.physics.models.base import BuildContext
 from lander_sim.physics.models.stabiliser import stabilise
 from lander_sim.physics.models.table import MODELS
@@ -32,14 +32,14 @@ from lander_sim.scenes import Scene
 __all__ = ["Derived", "Event", "EventKind", "Phase", "Simulation", "Snapshot", "build_dynamics", "compose"]
 
 
-def compose(scene: Scene, inputs: Inputs) -> tuple[LanderDynamics, Ground | None]:
+def compose(scene: Scene, inputs: Inputs) -> tuple[LanderDynamics, Surface | None]:
     """The models a scene switches on, built through the models table
     (:data:`lander_sim.physics.models.table.MODELS`, in its order; others are not built at all),
     composed into a :class:`LanderDynamics`; and the ground, if the scene has one."""
     ctx = BuildContext(vehicle=scene.vehicle)
     forces: list[ForceModel] = []
-    atmosphere: Atmosphere | None = None
-    ground: Ground | None = None
+    atmosphere: Air | None = None
+    ground: Surface | None = None
     for key, cfg in scene.models.configs.items():
         built = MODELS[key].build(cfg, ctx)
         forces.extend(built.forces)

@@ -10,7 +10,8 @@ whose message names the file and what is wrong.
 
 Writing: :func:`lander_typestore` is the ``rosbags`` type store with the
 project's custom messages (``lander_interfaces/msg/*.msg``) registered, which a
-``rosbags`` Writer needs to embed their definitions in a bag.
+``rosbags`` Writer needs to embed their definitions in a bag; :func:`message_class` is the
+rclpy class of a type name, which a subscription needs (it imports the type's package only).
 
 Time: messages with a ``header`` are placed at their ``header.stamp``
 (simulation time). Header-less messages (``std_msgs/Float64`` demand altitude,
@@ -19,6 +20,7 @@ it received them, mapped through the recorded ``/clock`` (bag time -> sim time).
 """
 from __future__ import annotations
 
+import importlib
 import os
 import sys
 import warnings
@@ -65,6 +67,13 @@ def _find_msg_file(msgtype: str) -> Path | None:
         if candidate.is_file():
             return candidate
     return None
+
+
+def message_class(msgtype: str) -> Any:
+    """The rclpy class of ``pkg/msg/Name`` (or ``pkg/srv/Name``): ``ImportError`` for a package
+    that is not installed, ``AttributeError`` for a name the package lacks."""
+    pkg, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
 def register_msgtype(typestore: Any, msgtype: str) -> None:
@@ -214,7 +223,8 @@ def _extrapolating_interp(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.n
     # Clock messages arrive in order; holding the last known time beyond the ends is the
     # best estimate of "what the recorder had seen".
     order = np.argsort(xp, kind="stable")
-    return np.interp(x, xp[order], fp[order])
+    out: np.ndarray = np.interp(x, xp[order], fp[order])
+    return out
 
 
 def _flatten(msg: Any, prefix: str, cols: dict[str, list[Any]]) -> None:

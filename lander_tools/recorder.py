@@ -29,7 +29,6 @@ is reported.
 from __future__ import annotations
 
 import argparse
-import importlib
 import signal
 import sys
 import threading
@@ -103,12 +102,6 @@ class RecorderConfig:
             raise RecorderError(f"topic names must be absolute (start with '/'): {', '.join(bad)}")
 
 
-def _message_class(msgtype: str) -> Any:
-    """The rclpy message class of ``pkg/msg/Name``."""
-    pkg, kind, name = msgtype.split("/")
-    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
-
-
 class Recorder:
     """Records topics of a ROS graph into a rosbag2 bag, in a node and executor thread of its own.
 
@@ -157,10 +150,15 @@ class Recorder:
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
         self._opened.wait()
-        if self._error is not None:  # the bag could not be created: nothing to record into
+        error = self._startup_error()
+        if error is not None:  # the bag could not be created: nothing to record into
             self._shutdown_node()
-            raise self._error
+            raise error
         self._timer = self.node.create_timer(discovery_period, self.discover)
+
+    def _startup_error(self) -> BaseException | None:
+        """What the recorder's thread met creating the bag (None: the bag is open)."""
+        return self._error
 
     def _run(self) -> None:
         """The recorder thread: open the bag, serve the recorder's node until :meth:`close` (or the
@@ -229,10 +227,10 @@ class Recorder:
         )
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
-        from lander_tools.bagio import BagError, register_msgtype
+        from lander_tools.bagio import BagError, message_class, register_msgtype
 
         try:
-            cls = _message_class(msgtype)
+            cls = message_class(msgtype)
             register_msgtype(self.typestore, msgtype)
         except (ImportError, AttributeError, BagError) as exc:
             self.node.get_logger().warning(f"not recording {topic}: type {msgtype} unavailable ({exc})")
@@ -334,14 +332,6 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     p.add_argument("-o", "--output", required=True, metavar="BAG", help="bag folder to create (must not exist)")
     p.add_argument("--storage", default="mcap", choices=("mcap", "sqlite3"), help="bag storage (default mcap)")
     p.add_argument("--all", action="store_true", help="record every topic that appears")
-    p.add_argument("--whole-flight", action="store_true",
-                   help="record the running flight whole: once matched, restart it from t = 0 (its reset), "
-                        "record to its end instant and check the bag against what the simulator published "
-                        "(exit 3 if a message is missing); docs/flying.md")
-    p.add_argument("--duration", type=float, metavar="S",
-                   help="with --whole-flight: end the flight at this sim time [s] (sets the sim's end_time)")
-    p.add_argument("--wait", type=float, default=10.0, metavar="S",
-                   help="with --whole-flight: wall seconds to wait for the flight's simulator (default 10)")
     p.add_argument(
         "--stop-when-gone",
         metavar="NODE",
@@ -356,15 +346,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def record(args: argparse.Namespace) -> int:
-    """Record as ``args`` (from :func:`build_parser`) say until Ctrl-C / SIGTERM; 0, or 2 on bad options.
-    ``--whole-flight``: :func:`lander_tools.whole_flight.record_whole_flight`."""
-    if getattr(args, "whole_flight", False):
-        from lander_tools.whole_flight import record_whole_flight
-
-        return record_whole_flight(args)
-    if getattr(args, "duration", None) is not None:
-        print("lander record: --duration needs --whole-flight (a recorder alone cannot end a flight)", file=sys.stderr)
-        return 2
+    """Record as ``args`` (from :func:`build_parser`) say until Ctrl-C / SIGTERM; 0, or 2 on bad options."""
     try:
         config = RecorderConfig(
             Path(args.output), args.storage, tuple(args.topics) or DEFAULT_TOPICS, bool(args.all)

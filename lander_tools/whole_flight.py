@@ -65,8 +65,21 @@ def _say(text: str) -> None:
     print(f"lander record: {text}", flush=True)
 
 
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """This command's options, beside the recorder's (:func:`lander_tools.recorder.build_parser`)."""
+    parser.add_argument("--whole-flight", action="store_true",
+                        help="record the running flight whole: once matched, restart it from t = 0 (its reset), "
+                             "record to its end instant and check the bag against what the simulator published "
+                             "(exit 3 if a message is missing); docs/flying.md")
+    parser.add_argument("--duration", type=float, metavar="S",
+                        help="with --whole-flight: end the flight at this sim time [s] (sets the sim's end_time)")
+    parser.add_argument("--wait", type=float, default=10.0, metavar="S",
+                        help="with --whole-flight: wall seconds to wait for the flight's simulator (default 10)")
+
+
 def record_whole_flight(args: argparse.Namespace, on_started: Callable[[], None] | None = None) -> int:
-    """Run the protocol of the module docstring with ``args`` from :func:`lander_tools.recorder.build_parser`.
+    """Run the protocol of the module docstring with ``args`` from :func:`lander_tools.recorder.build_parser`
+    and :func:`add_arguments`.
 
     ``on_started``: called once the flight has been reset (``lander record --live`` starts its
     bridge there, so the bridge's readers do not count among the ones this command waits for)."""

@@ -34,11 +34,11 @@ import numpy as np
 from lander_sim.fast import lander_kernel as _k
 from lander_sim.fast.cache_guard import invalidate_if_changed
 from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]  # numba's, or the no-numba stand-in
-from lander_sim.integrators.adaptive import DP_A, DP_C, DP_E
+from lander_sim.integrators.dormand_prince import DP_A, DP_C, DP_E
 
-# These kernels call lander_kernel's (and geometric's free rotor): recompile when those change.
-invalidate_if_changed(__file__, _k.__file__, str(Path(__file__).parents[1] / "integrators" / "geometric.py"),
-                      str(Path(__file__).parents[1] / "integrators" / "adaptive.py"))
+# These kernels call lander_kernel's and the free rotor, and hold the Dormand-Prince tableau: recompile when those change.
+invalidate_if_changed(__file__, _k.__file__, str(Path(__file__).parents[1] / "integrators" / "free_rotor.py"),
+                      str(Path(__file__).parents[1] / "integrators" / "dormand_prince.py"))
 
 __all__ = ["CompiledModel", "compiled_model", "dop853_span", "dop853_tableau", "dopri5_span", "rk4_steps", "unsupported_model"]
 
@@ -481,7 +481,7 @@ def _torque_part(acc, w0, w1, w2, I, out):  # pragma: no cover - compiled
 
 
 def _make_geometric_steps():
-    from lander_sim.integrators.geometric import free_rotor_step
+    from lander_sim.integrators.free_rotor import free_rotor_step
 
     rotor = njit(cache=True)(free_rotor_step)
 
@@ -542,7 +542,7 @@ _GEOMETRIC = None
 
 def geometric_steps(*args: Any) -> int:
     """``n`` compiled steps of the geometric splitting (built on first use: it compiles
-    :func:`lander_sim.integrators.geometric.free_rotor_step` itself). Arguments as
+    :func:`lander_sim.integrators.free_rotor.free_rotor_step` itself). Arguments as
     :func:`rk4_steps`; quaternion mode only: raises ``ValueError`` for Euler-angle parameters."""
     global _GEOMETRIC
     if args[3][_k.P_EULER] != 0.0:

@@ -13,8 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from lander_sim.physics import rotation
-from lander_sim.physics.models.atmosphere import Atmosphere
-from lander_sim.physics.models.base import EvalContext, ForceModel, Inputs
+from lander_sim.physics.models.base import Air, EvalContext, ForceModel, Inputs
 from lander_sim.physics.models.thrusters import Thrusters
 from lander_sim.physics.rigid_body import omega_dot
 from lander_sim.physics.state import AttitudeMode
@@ -36,8 +35,9 @@ class LanderDynamics:
         False for a fixed pivot: the body only rotates about the mount point.
     inputs : Inputs
         Throttles and wind (shared with the simulation, which sets them between steps).
-    atmosphere : Atmosphere or None
-        Density model; None means vacuum (``rho = 0``, not evaluated).
+    atmosphere : Air or None
+        Density model (:class:`~lander_sim.physics.models.atmosphere.Atmosphere`); None means vacuum
+        (``rho = 0``, not evaluated).
     planet_radius : float
         For the altitude in the context [m]; 0 for planet-less scenes.
     """
@@ -49,7 +49,7 @@ class LanderDynamics:
         attitude: AttitudeMode,
         translation: bool,
         inputs: Inputs,
-        atmosphere: Atmosphere | None = None,
+        atmosphere: Air | None = None,
         planet_radius: float = 0.0,
     ) -> None:
         self.vehicle = vehicle

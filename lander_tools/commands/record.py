@@ -9,12 +9,16 @@ flight, 3 a message missing). Heavy imports (rclpy) happen in :func:`run`.
 """
 
 import argparse
+import sys
+from collections.abc import Callable
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from lander_tools.recorder import build_parser
+    from lander_tools.whole_flight import add_arguments as add_whole_flight_arguments
 
     build_parser(parser)
+    add_whole_flight_arguments(parser)
     parser.add_argument("--live", action="store_true",
                         help="also serve the flight live: Foxglove server and student page (docs/live.md)")
     parser.add_argument("--port", type=int, default=8765, metavar="P",
@@ -22,10 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lander_tools.recorder import record
-
+    if args.duration is not None and not args.whole_flight:
+        print("lander record: --duration needs --whole-flight (a recorder alone cannot end a flight)", file=sys.stderr)
+        return 2
     if not args.live:
-        return record(args)
+        return _record(args)
     import subprocess
 
     from lander_tools.live.bridge import command
@@ -38,13 +43,22 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         if args.whole_flight:  # the bridge joins after the reset, so it is no reader the protocol waits for
-            from lander_tools.whole_flight import record_whole_flight
-
-            return record_whole_flight(args, on_started=start_bridge)
+            return _record(args, on_started=start_bridge)
         start_bridge()
-        return record(args)
+        return _record(args)
     finally:
         for bridge in bridges:
             if bridge.poll() is None:
                 bridge.terminate()
             bridge.wait(10)
+
+
+def _record(args: argparse.Namespace, on_started: Callable[[], None] | None = None) -> int:
+    """The recorder alone, or with ``--whole-flight`` the flight restarted and recorded whole."""
+    if args.whole_flight:
+        from lander_tools.whole_flight import record_whole_flight
+
+        return record_whole_flight(args, on_started=on_started)
+    from lander_tools.recorder import record
+
+    return record(args)

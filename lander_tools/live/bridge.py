@@ -53,7 +53,7 @@ from typing import Any
 
 from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
-from lander_tools.live import views
+from lander_tools.live import scene, views
 from lander_tools.live.link import (
     AUTOPILOT_NODE,
     SIM_NODE,
@@ -179,7 +179,6 @@ class LiveBridge:
         self.autopilot_read = False  # the autopilot (if any) was found and its parameters read
 
         self.link = FlightLink(NODE_NAME, context=context)
-        node = self.link.node
         from lander_interfaces.msg import FlightEvent, LanderState
 
         self._LanderState = LanderState
@@ -224,10 +223,9 @@ class LiveBridge:
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read_states, name="live-states", daemon=True)
         self._reader.start()
-        with self.link._lock:
-            node.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
-            node.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
-            node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
+        self.link.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
+        self.link.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
+        self.link.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -247,6 +245,7 @@ class LiveBridge:
         self._publish_status()
 
     def _read_flight(self) -> None:
+        from lander_sim.look import Look
         from lander_sim.scenes import load_scene
 
         try:
@@ -255,8 +254,7 @@ class LiveBridge:
         except (NoFlight, TimeoutError, ValueError) as exc:
             self._status(f"flight found but not read yet: {exc}", error=False)
             return
-        self.tracker = views.SceneTracker([(t.position_B, t.direction_B) for t in vehicle.thrusters],
-                                          float(vehicle.size))
+        self.tracker = views.SceneTracker(Look.of(vehicle))
         self.ready = True
 
     def _read_autopilot(self) -> None:
@@ -286,9 +284,12 @@ class LiveBridge:
     def _take_state(self) -> bytes | None:
         """The latest state's CDR bytes if one arrived since the last take, else None."""
         sub = self._state_sub
-        with sub.handle:
-            taken = sub.handle.take_message(sub.msg_type, True)
-        return None if taken is None else taken[0]
+        with sub.handle:  # rclpy's stub omits it: the take gives None when no message is waiting
+            taken: tuple[Any, ...] | None = sub.handle.take_message(sub.msg_type, True)
+        if taken is None:
+            return None
+        data: bytes = taken[0]
+        return data
 
     def _read_states(self) -> None:
         """The reader thread: take the latest state every half publishing interval; publish it
@@ -314,20 +315,6 @@ class LiveBridge:
             self._publish_latest_locked()
 
     def _publish_latest_locked(self) -> None:
-        from foxglove.messages import (
-            Color,
-            CubePrimitive,
-            CylinderPrimitive,
-            FrameTransform,
-            FrameTransforms,
-            LinePrimitive,
-            Point3,
-            SceneEntity,
-            SceneUpdate,
-            SpherePrimitive,
-            Timestamp,
-            Vector3,
-        )
         from rclpy.serialization import deserialize_message
 
         with self._lock:
@@ -342,47 +329,19 @@ class LiveBridge:
         self._last_seq = msg.sequence
         record = views.state_record(msg, self.params.get("demand_altitude"), str(self.params.get("controller") or ""),
                                     self.paused)
-        p, q = msg.position, msg.orientation
+        here = None
         if self.tracker is not None:
+            p, q = msg.position, msg.orientation
             here = self.tracker.add((p.x, p.y, p.z))
             record["position_S"], record["up_S"] = list(here), list(self.tracker.body_up((q.x, q.y, q.z, q.w)))
         self.ch_state.log(record, log_time=t_ns)
         self.server.broadcast_time(t_ns)
         self.states_out += 1
-        if self.tracker is None:
+        if self.tracker is None or here is None:
             return
-        stamp = Timestamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-        surface = self.tracker.surface_pose()
-        self.ch_tf.log(FrameTransforms(transforms=[
-            _transform(FrameTransform, Vector3, stamp, "mars", "surface", surface),
-            _transform(FrameTransform, Vector3, stamp, "mars", "base_link",
-                       views.Pose((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))),
-        ]), log_time=t_ns)
-        size = self.tracker.size
-        grey, orange, blue = Color(r=0.8, g=0.8, b=0.8, a=1.0), Color(r=1.0, g=0.5, b=0.1, a=0.9), Color(r=0.2, g=0.6, b=1.0, a=1.0)
-        body = SceneEntity(timestamp=stamp, frame_id="base_link", id="body", frame_locked=True,
-                           cubes=[CubePrimitive(pose=_pose(views.Pose((0, 0, 0), (0, 0, 0, 1))),
-                                                size=Vector3(x=size, y=size, z=0.6 * size), color=grey)])
-        plumes = []
-        for plume in self.tracker.plumes(msg.throttles):
-            pose, length = views.plume_pose(plume)
-            if length > 0:
-                plumes.append(CylinderPrimitive(pose=_pose(pose), size=Vector3(x=0.15 * size, y=0.15 * size, z=length),
-                                                bottom_scale=1.0, top_scale=0.3, color=orange))
-        thrust = SceneEntity(timestamp=stamp, frame_id="base_link", id="plumes", frame_locked=True, cylinders=plumes)
-        trail = SceneEntity(timestamp=stamp, frame_id="surface", id="trail", lines=[LinePrimitive(
-            pose=_pose(views.Pose((0, 0, 0), (0, 0, 0, 1))), thickness=2.0, scale_invariant=True, color=blue,
-            points=[Point3(x=a, y=b, z=c) for a, b, c in self.tracker.trail_S])])
-        ground = SceneEntity(timestamp=stamp, frame_id="surface", id="ground", cubes=[CubePrimitive(
-            pose=_pose(views.Pose((here[0], here[1], -0.05), (0, 0, 0, 1))),
-            size=Vector3(x=400.0, y=400.0, z=0.1), color=Color(r=0.6, g=0.3, b=0.2, a=1.0))])
-        entities = [body, thrust, trail, ground]
-        if msg.parachute_deployed:
-            entities.append(SceneEntity(timestamp=stamp, frame_id="base_link", id="parachute", frame_locked=True,
-                                        spheres=[SpherePrimitive(pose=_pose(views.Pose((0, 0, 4 * size), (0, 0, 0, 1))),
-                                                                 size=Vector3(x=4 * size, y=4 * size, z=1.5 * size),
-                                                                 color=Color(r=0.9, g=0.9, b=1.0, a=0.7))]))
-        self.ch_scene.log(SceneUpdate(entities=entities), log_time=t_ns)
+        transforms, update = scene.messages(self.tracker, msg, here)
+        self.ch_tf.log(transforms, log_time=t_ns)
+        self.ch_scene.log(update, log_time=t_ns)
 
     def _on_event(self, msg: Any) -> None:
         from lander_interfaces.msg import FlightEvent
@@ -458,10 +417,7 @@ class LiveBridge:
             return
         try:
             if kind == "demand":
-                from std_msgs.msg import Float64
-
-                self.link._publish_checked(self.link._publisher(Float64, "/lander/demand_altitude"),
-                                           Float64(data=value), "demand", wait=False)
+                self.link.publish_demand_altitude(value, wait=False)
             elif kind == "wind":
                 self.link.publish_wind(value, wait=False)
             else:
@@ -532,22 +488,6 @@ class LiveBridge:
 
     def _handler(self, name: str) -> Callable[[Any], bytes]:
         return lambda request: self.call_service(name, request.payload)
-
-
-def _pose(p: views.Pose) -> Any:
-    from foxglove.messages import Pose, Quaternion, Vector3
-
-    return Pose(position=Vector3(x=p.position[0], y=p.position[1], z=p.position[2]),
-                orientation=Quaternion(x=p.orientation[0], y=p.orientation[1], z=p.orientation[2], w=p.orientation[3]))
-
-
-def _transform(FrameTransform: Any, Vector3: Any, stamp: Any, parent: str, child: str, p: views.Pose) -> Any:
-    from foxglove.messages import Quaternion
-
-    return FrameTransform(timestamp=stamp, parent_frame_id=parent, child_frame_id=child,
-                          translation=Vector3(x=p.position[0], y=p.position[1], z=p.position[2]),
-                          rotation=Quaternion(x=p.orientation[0], y=p.orientation[1], z=p.orientation[2],
-                                              w=p.orientation[3]))
 
 
 def _make_listener_base() -> type:

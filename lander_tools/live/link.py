@@ -22,6 +22,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from lander_tools.bagio import message_class
+
 #: Wall seconds a CLI verb waits for the flight's nodes to appear (discovery takes up to ~3 s with
 #: several processes starting on 2 cores: /work/shared/notes/ros2-from-pypi.md).
 DISCOVERY_TIMEOUT = 3.0
@@ -57,13 +59,6 @@ def message_to_dict(msg: Any) -> Any:
     if isinstance(msg, bytes):
         return list(msg)
     return msg
-
-
-def message_class(msgtype: str) -> Any:
-    """The rclpy class of ``pkg/msg/Name`` (or ``pkg/srv/Name``)."""
-    from lander_tools.recorder import _message_class
-
-    return _message_class(msgtype)
 
 
 class FlightLink:
@@ -304,6 +299,16 @@ class FlightLink:
         return Outcome(True, "published (no rejection from the simulator within "
                              f"{REJECT_WINDOW:g} s)")
 
+    def publish_demand_altitude(self, altitude_m: float, wait: bool = False) -> Outcome:
+        """Demand altitude [m] on the autopilot's ``/lander/demand_altitude`` topic (what a client
+        publishing on that topic means; :meth:`set_demand` takes the parameter's door)."""
+        from std_msgs.msg import Float64
+
+        if wait:
+            self.watch_rejections()
+        return self._publish_checked(self._publisher(Float64, "/lander/demand_altitude"), Float64(data=float(altitude_m)),
+                                     "demand", wait)
+
     def publish_wind(self, wind_W: Sequence[float], frame_id: str = "mars", wait: bool = True) -> Outcome:
         """Wind [m/s], world frame, on ``/lander/wind``; with ``wait``, watch for its refusal."""
         from geometry_msgs.msg import Vector3Stamped
@@ -325,6 +330,12 @@ class FlightLink:
             self.watch_rejections()
         return self._publish_checked(self._publisher(ThrottleCommand, "/lander/throttle"), msg, "throttle", wait)
 
+    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos: Any) -> Any:
+        """A subscription of the link's node with the QoS given, made under the link's lock as its
+        clients and publishers are (the owner's threads may be making them meanwhile)."""
+        with self._lock:
+            return self.node.create_subscription(msg_type, topic, callback, qos)
+
     def subscribe(self, topic: str, msgtype: str, callback: Callable[[Any], None], depth: int = 100) -> Any:
         """Subscribe to ``topic`` (QoS following its publishers, as the recorder does)."""
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -335,5 +346,4 @@ class FlightLink:
         qos = QoSProfile(depth=depth,
                          reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-        with self._lock:
-            return self.node.create_subscription(message_class(msgtype), topic, callback, qos)
+        return self.create_subscription(message_class(msgtype), topic, callback, qos)

@@ -1,6 +1,7 @@
 """``rcl_interfaces/ParameterValue`` <-> Python values (typed by the Python value)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 
@@ -23,7 +24,7 @@ def python_value(pv: Any) -> Any:
     """The Python value of a ``ParameterValue`` (None when not set)."""
     from rcl_interfaces.msg import ParameterType as T
 
-    return {
+    getters: dict[int, Callable[[], Any]] = {
         T.PARAMETER_BOOL: lambda: pv.bool_value,
         T.PARAMETER_INTEGER: lambda: pv.integer_value,
         T.PARAMETER_DOUBLE: lambda: pv.double_value,
@@ -32,4 +33,6 @@ def python_value(pv: Any) -> Any:
         T.PARAMETER_INTEGER_ARRAY: lambda: list(pv.integer_array_value),
         T.PARAMETER_BOOL_ARRAY: lambda: list(pv.bool_array_value),
         T.PARAMETER_STRING_ARRAY: lambda: list(pv.string_array_value),
-    }.get(pv.type, lambda: None)()
+    }
+    get = getters.get(pv.type)
+    return None if get is None else get()

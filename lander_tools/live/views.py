@@ -1,6 +1,7 @@
 """What the live channels show, computed from a lander state: plain numpy, no rclpy, no foxglove.
 
-The bridge (:mod:`lander_tools.live.bridge`) turns these into foxglove messages. Frames
+The bridge (:mod:`lander_tools.live.bridge`) sends these; :mod:`lander_tools.live.scene` turns the
+3-D scene into foxglove messages. Frames
 (docs/architecture.md, "Frames and conventions"):
 
 * ``mars``: planet-centred world frame of the simulator (positions ~3.4e6 m from its origin).
@@ -11,14 +12,12 @@ The bridge (:mod:`lander_tools.live.bridge`) turns these into foxglove messages.
   (dynamics reference, eq 12-13), which read actively is the orientation of
   ``base_link`` in ``mars`` (the conversion is :func:`lander_sim.ros.convert.ros_orientation`).
 
-Thrust plumes follow the markers of the sim node (:mod:`lander_sim.ros.markers`): from the point
-of action ``p_i`` along the exhaust direction ``d_i`` (body frame), length
-``PLUME_LENGTH_PER_SIZE * L * throttle_i``.
+What the scene shows of the vehicle (body, plumes scaled by throttle, parachute, trail) is its
+look, :mod:`lander_sim.look`, the one the sim node's RViz markers draw too.
 """
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from lander_ros.stamps import stamp_to_seconds
+from lander_sim.look import Look, Plume, Trail
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world, matrix_to_quat
-from lander_sim.ros.markers import PLUME_LENGTH_PER_SIZE
 
 #: Phase names of ``LanderState.phase`` (lander_interfaces/msg/LanderState.msg).
 PHASES = ("flying", "landed", "crashed")
@@ -108,32 +107,19 @@ class Pose:
     orientation: tuple[float, float, float, float]
 
 
-@dataclass(frozen=True)
-class Plume:
-    """One thrust plume in the body frame ``base_link``: from ``start_B`` [m] to ``end_B`` [m]."""
-
-    start_B: tuple[float, float, float]
-    end_B: tuple[float, float, float]
-    throttle: float
-
-
 @dataclass
 class SceneTracker:
-    """The 3-D scene of a flight: the local ``surface`` frame, the trail, the plumes.
+    """The 3-D scene of a flight: the local ``surface`` frame and the trail in it, for a vehicle
+    of ``look`` (:class:`lander_sim.look.Look`: its size and thrusters)."""
 
-    ``thrusters`` are ``(position_B, direction_B)`` pairs (body frame, see
-    :class:`lander_sim.physics.vehicle.Thruster`); ``size`` is the lander size L [m].
-    """
-
-    thrusters: Sequence[tuple[Sequence[float], Sequence[float]]]
-    size: float
+    look: Look
     trail_length: int = 2000
     origin_W: np.ndarray | None = None
     R_WS: np.ndarray | None = None  # columns: the surface frame's axes in world coordinates
-    trail_S: deque = field(default_factory=deque)
+    trail_S: Trail = field(init=False)
 
     def __post_init__(self) -> None:
-        self.trail_S = deque(maxlen=self.trail_length)
+        self.trail_S = Trail(self.trail_length)
 
     def reset(self) -> None:
         """New epoch (reset / scene load): forget the trail and re-anchor the surface frame."""
@@ -156,16 +142,18 @@ class SceneTracker:
         # The core's R(q) maps world to the child frame (dynamics reference eq 12-13): R = R_WS^T;
         # the same q read actively is the ROS orientation of ``surface`` in ``mars``.
         q = matrix_to_quat(self.R_WS.T)
-        return Pose(tuple(float(c) for c in self.origin_W), (float(q[1]), float(q[2]), float(q[3]), float(q[0])))
+        o = self.origin_W
+        return Pose((float(o[0]), float(o[1]), float(o[2])), (float(q[1]), float(q[2]), float(q[3]), float(q[0])))
 
     def add(self, r_W: Sequence[float]) -> tuple[float, float, float]:
         """Record a world position [m]; returns it in the ``surface`` frame [m]."""
         r = np.asarray(r_W, dtype=float)
         if self.origin_W is None:
             self._anchor(r)
+        assert self.R_WS is not None and self.origin_W is not None
         p = self.R_WS.T @ (r - self.origin_W)
         point = (float(p[0]), float(p[1]), float(p[2]))
-        self.trail_S.append(point)
+        self.trail_S.add(point)
         return point
 
     def body_up(self, q_xyzw: Sequence[float]) -> tuple[float, float, float]:
@@ -177,17 +165,6 @@ class SceneTracker:
         u = self.R_WS.T @ z_W
         return (float(u[0]), float(u[1]), float(u[2]))
 
-    def plumes(self, throttles: Sequence[float]) -> list[Plume]:
-        """One plume per thruster, scaled by its throttle (0: zero length)."""
-        out = []
-        for (p_B, d_B), u in zip(self.thrusters, throttles):
-            length = PLUME_LENGTH_PER_SIZE * self.size * max(0.0, float(u))
-            p = tuple(float(c) for c in p_B)
-            d = np.asarray(d_B, dtype=float)
-            end = tuple(float(a + length * b) for a, b in zip(p, d))
-            out.append(Plume(p, end, float(u)))
-        return out
-
 
 def plume_pose(plume: Plume) -> tuple[Pose, float]:
     """Pose (in ``base_link``) and length [m] of a cylinder along the plume: Foxglove's cylinder
@@ -195,7 +172,8 @@ def plume_pose(plume: Plume) -> tuple[Pose, float]:
     a, b = np.asarray(plume.start_B), np.asarray(plume.end_B)
     d = b - a
     length = float(np.linalg.norm(d))
-    centre = tuple(float(c) for c in (a + b) / 2.0)
+    m = (a + b) / 2.0
+    centre = (float(m[0]), float(m[1]), float(m[2]))
     if length < 1e-12:
         return Pose(centre, (0.0, 0.0, 0.0, 1.0)), 0.0
     z = d / length
@@ -206,4 +184,5 @@ def plume_pose(plume: Plume) -> tuple[Pose, float]:
         return Pose(centre, (0.0, 0.0, 0.0, 1.0) if c > 0 else (1.0, 0.0, 0.0, 0.0)), length
     axis /= s
     half = math.atan2(s, c) / 2.0
-    return Pose(centre, (*(float(x) * math.sin(half) for x in axis), math.cos(half))), length
+    sh = math.sin(half)
+    return Pose(centre, (float(axis[0]) * sh, float(axis[1]) * sh, float(axis[2]) * sh, math.cos(half))), length

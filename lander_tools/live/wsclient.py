@@ -58,9 +58,10 @@ class FoxgloveClient:
 
     async def _main(self) -> None:
         import websockets
+        from websockets.typing import Subprotocol
 
         try:
-            self.ws = await websockets.connect(f"ws://127.0.0.1:{self.port}", subprotocols=[SUBPROTOCOL],
+            self.ws = await websockets.connect(f"ws://127.0.0.1:{self.port}", subprotocols=[Subprotocol(SUBPROTOCOL)],
                                                max_size=None)
         except Exception as exc:  # noqa: BLE001 - reported by the constructor
             self._error = exc
@@ -129,13 +130,17 @@ class FoxgloveClient:
 
     def latest(self, topic: str) -> dict[str, Any] | None:
         msgs = self.messages[topic]
-        return json.loads(msgs[-1][2]) if msgs else None
+        if not msgs:
+            return None
+        record: dict[str, Any] = json.loads(msgs[-1][2])
+        return record
 
     def call(self, service: str, request: Any, timeout: float = 30.0) -> dict[str, Any]:
         call_id, self._next = self._next, self._next + 1
         payload = request if isinstance(request, bytes) else json.dumps(request).encode()
         self._send(bytes([2]) + struct.pack("<III", self.services[service]["id"], call_id, 4) + b"json" + payload)
-        return wait_until(lambda: self._responses.get(call_id), timeout, f"answer of {service}")
+        answer: dict[str, Any] = wait_until(lambda: self._responses.get(call_id), timeout, f"answer of {service}")
+        return answer
 
     def set_parameters(self, params: list[dict[str, Any]], timeout: float = 30.0) -> list[dict[str, Any]]:
         rid = f"set-{self._next}"
@@ -143,7 +148,8 @@ class FoxgloveClient:
         self._send(json.dumps({"op": "setParameters", "parameters": params, "id": rid}))
         reply = wait_until(lambda: next((t for t in self.texts if t.get("op") == "parameterValues"
                                          and t.get("id") == rid), None), timeout, "parameterValues")
-        return reply["parameters"]
+        values: list[dict[str, Any]] = reply["parameters"]
+        return values
 
     def publish(self, topic: str, payload: bytes) -> None:
         if topic not in self._client_channels:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from lander_sim.integrators import IntegratorError, make
-from lander_sim.integrators.geometric import free_rotor_run, free_rotor_step
+from lander_sim.integrators.free_rotor import free_rotor_run, free_rotor_step
 from lander_sim.physics import rotation
 
 from .problems import KeplerTop, state

@@ -1,5 +1,6 @@
-"""The live bridge's plain parts (no ROS, no server): frames and plumes of the 3-D scene, the
-client input checks, the page server, the shipped Foxglove layout."""
+"""The live bridge's plain parts (no ROS, no server): frames and plumes of the 3-D scene (the
+vehicle's look, the same the sim's RViz markers draw), the client input checks, the page server,
+the shipped Foxglove layout."""
 from __future__ import annotations
 
 import json
@@ -10,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from lander_sim.look import PLUME_LENGTH_PER_SIZE, Look
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world
-from lander_sim.ros.markers import PLUME_LENGTH_PER_SIZE
 from lander_sim.scenes import load_scene
 from lander_tools.live import views
 from lander_tools.live.bridge import (
@@ -33,7 +34,7 @@ def rotate(q_xyzw: tuple[float, float, float, float], v: np.ndarray) -> np.ndarr
 
 def test_surface_frame_sits_on_the_ground_below_the_first_position_with_z_up() -> None:
     r_W = np.array([1200.0, -MARS_RADIUS - 550.0, 300.0])
-    tr = views.SceneTracker([], 1.0)
+    tr = views.SceneTracker(Look(1.0))
     here = tr.add(r_W)
     pose = tr.surface_pose()
     up = r_W / np.linalg.norm(r_W)
@@ -49,7 +50,7 @@ def test_surface_frame_sits_on_the_ground_below_the_first_position_with_z_up() -
 def test_body_up_is_the_body_z_axis_in_the_surface_frame() -> None:
     scene = load_scene("hover-canted")  # tilted start: a non-trivial attitude
     q = scene.initial_state[6:10] / np.linalg.norm(scene.initial_state[6:10])
-    tr = views.SceneTracker([], 1.0)
+    tr = views.SceneTracker(Look(1.0))
     tr.add(scene.initial_state[0:3])
     up_S = np.array(tr.body_up((q[1], q[2], q[3], q[0])))
     z_W = body_to_world(q, np.array([0.0, 0.0, 1.0]))
@@ -57,11 +58,10 @@ def test_body_up_is_the_body_z_axis_in_the_surface_frame() -> None:
     assert np.linalg.norm(up_S) == pytest.approx(1.0, abs=1e-12)
 
 
-def test_plumes_scale_with_throttle_along_the_exhaust_as_the_sim_markers() -> None:
+def test_plumes_scale_with_throttle_along_the_exhaust() -> None:
     v = load_scene("hover-canted").vehicle
-    tr = views.SceneTracker([(t.position_B, t.direction_B) for t in v.thrusters], v.size)
     throttles = [0.0, 0.25, 0.5, 1.0]
-    for thr, u, plume in zip(v.thrusters, throttles, tr.plumes(throttles)):
+    for thr, u, plume in zip(v.thrusters, throttles, Look.of(v).plumes(throttles)):
         np.testing.assert_allclose(plume.start_B, thr.position_B)
         np.testing.assert_allclose(np.subtract(plume.end_B, plume.start_B),
                                    PLUME_LENGTH_PER_SIZE * v.size * u * np.asarray(thr.direction_B), atol=1e-12)
@@ -74,7 +74,7 @@ def test_plumes_scale_with_throttle_along_the_exhaust_as_the_sim_markers() -> No
 
 
 def test_trail_is_bounded_and_reset_starts_a_new_one() -> None:
-    tr = views.SceneTracker([], 1.0, trail_length=5)
+    tr = views.SceneTracker(Look(1.0), trail_length=5)
     for k in range(8):
         tr.add([0.0, -MARS_RADIUS - 100.0 - k, 0.0])
     assert len(tr.trail_S) == 5 and tr.trail_S[-1][2] == pytest.approx(107.0)

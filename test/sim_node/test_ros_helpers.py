@@ -173,3 +173,40 @@ def test_seed_parameter_minus_one_keeps_the_scene_seed_and_a_given_seed_reseeds(
     assert not np.array_equal(wind_after(other.sim), core)
     other.reset()
     assert not np.array_equal(wind_after(other.sim), core)  # the given seed stays in force
+
+
+def test_the_markers_draw_the_vehicles_look_in_the_world_frame():
+    """The RViz markers render lander_sim.look (the live scene renders the same): body of size L,
+    one arrow per thruster from r_W + R^T p_i along R^T d_i as long as the look's plume (eq 13:
+    body -> world), lit ones opaque and unlit ones invisible, in the look's colours; the trail."""
+    from lander_sim import look
+    from lander_sim.ros.markers import MarkerBuilder
+    from lander_sim.ros.sim_adapter import build_simulation
+
+    sim = build_simulation("hover-canted")  # canted thrusters, tilted start: nothing lines up with an axis
+    throttles = [0.0, 0.25, 0.5, 1.0]
+    sim.set_throttles(throttles)
+    builder = MarkerBuilder("mars", trajectory_length=3)
+    for _ in range(5):
+        sim.step(10)
+        snap = sim.readout()
+        builder.record(snap.r_W)
+    markers = {(m.ns, m.id): m for m in builder.build(snap, sim.vehicle).markers}
+    shape = look.Look.of(sim.vehicle)
+    colour = lambda m: (m.color.r, m.color.g, m.color.b, m.color.a)  # noqa: E731
+    body = markers[("body", 0)]
+    assert (body.scale.x, body.scale.y, body.scale.z) == (shape.size,) * 3
+    assert colour(body) == pytest.approx(tuple(vars(look.BODY_COLOUR).values()))
+    trail = markers[("trajectory", 1)]
+    assert len(trail.points) == 3 and trail.points[-1].y == pytest.approx(snap.r_W[1], rel=1e-15)
+    assert colour(trail) == pytest.approx(tuple(vars(look.TRAIL_COLOUR).values()))
+    for i, plume in enumerate(shape.plumes(throttles)):
+        arrow = markers[("plumes", 100 + i)]
+        start, end = (np.array([p.x, p.y, p.z]) for p in arrow.points)
+        np.testing.assert_allclose(start, snap.r_W + rotation.body_to_world(snap.q, np.array(plume.start_B)),
+                                   rtol=0, atol=1e-9)
+        np.testing.assert_allclose(end - start, rotation.body_to_world(snap.q, np.subtract(plume.end_B, plume.start_B)),
+                                   rtol=0, atol=1e-9)  # |r_W| ~ 3.4e6 m: differences keep ~1e-9 m
+        assert plume.length == pytest.approx(look.PLUME_LENGTH_PER_SIZE * shape.size * throttles[i], abs=1e-15)
+        rgb = tuple(vars(look.PLUME_COLOUR).values())[:3]
+        assert colour(arrow) == pytest.approx((*rgb, 1.0 if throttles[i] > 0 else 0.0))

@@ -19,8 +19,6 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from lander_sim.physics.models.atmosphere import Atmosphere
-    from lander_sim.physics.models.ground import Ground
     from lander_sim.physics.vehicle import Vehicle
     from lander_sim.yaml_file import Reader
 
@@ -82,6 +80,86 @@ class ForceModel(Protocol):
         ...
 
 
+class Air(Protocol):
+    """What an atmosphere provides (:class:`lander_sim.physics.models.atmosphere.Atmosphere`):
+    the density the drag models and the parachute see, and its exponential law's parameters
+    (``rho = rho0 exp(-h / H)`` below the exosphere, zero above), which the compiled kernels
+    (:mod:`lander_sim.fast`) evaluate themselves."""
+
+    @property
+    def surface_density(self) -> float:
+        """``rho0`` [kg/m^3]."""
+        ...
+
+    @property
+    def scale_height(self) -> float:
+        """``H`` [m]."""
+        ...
+
+    @property
+    def exosphere(self) -> float:
+        """Altitude above which the density is zero [m]."""
+        ...
+
+    def density(self, altitude: float) -> float:
+        """Air density [kg/m^3] at ``altitude`` [m] above the surface."""
+        ...
+
+
+#: Touchdown classes, best first.
+SAFE, HARD, CRASH = "safe", "hard", "crash"
+
+
+@dataclass(frozen=True)
+class Touchdown:
+    """Where and how the lander met the ground.
+
+    Attributes
+    ----------
+    fraction : float
+        Fraction ``s`` of the last step at which the impact happened, in [0, 1].
+    descent_rate : float
+        ``-v . r_hat`` at impact [m/s] (positive downwards).
+    ground_speed : float
+        Horizontal speed at impact [m/s].
+    crashed : bool
+        True when the touchdown is a crash (``classification == "crash"``).
+    tilt : float
+        Angle between the body z axis and the local vertical at impact [rad].
+    classification : str
+        ``safe``, ``hard`` or ``crash`` (:meth:`TouchdownLimits.classify`).
+    """
+
+    fraction: float
+    descent_rate: float
+    ground_speed: float
+    crashed: bool
+    tilt: float = 0.0
+    classification: str = SAFE
+
+
+class Surface(Protocol):
+    """What a ground provides (:class:`lander_sim.physics.models.ground.Ground`): where the
+    lander touches and how the touchdown is classified."""
+
+    @property
+    def contact_radius(self) -> float:
+        """Centre-of-mass distance from the planet's centre at which the lander touches [m]."""
+        ...
+
+    def below(self, r_W: np.ndarray) -> bool:
+        """True when the centre of mass at ``r_W`` [m] is inside the contact radius."""
+        ...
+
+    def impact_fraction(self, r0_W: np.ndarray, r1_W: np.ndarray) -> float:
+        """Fraction in [0, 1] of the straight step from ``r0_W`` to ``r1_W`` at which it touches."""
+        ...
+
+    def classify(self, fraction: float, r_W: np.ndarray, v_W: np.ndarray, z_B_W: np.ndarray | None = None) -> Touchdown:
+        """The touchdown at the interpolated impact state (``z_B_W``: body z axis, world frame)."""
+        ...
+
+
 # --- a model as a scene switches it on (the table: lander_sim.physics.models.table) ----------
 
 
@@ -100,9 +178,9 @@ class Built:
     atmosphere (density for the drag models), the planet radius, the ground (touchdown)."""
 
     forces: tuple[ForceModel, ...] = ()
-    atmosphere: Atmosphere | None = None
+    atmosphere: Air | None = None
     planet_radius: float | None = None
-    ground: Ground | None = None
+    ground: Surface | None = None
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lander_sim.physics import constants as c
-from lander_sim.physics.models.base import BuildContext, Built, ModelEntry, needs_planet
+from lander_sim.physics.models.base import CRASH, HARD, SAFE, BuildContext, Built, ModelEntry, Touchdown, needs_planet
 from lander_sim.yaml_file import Reader
-
-#: Touchdown classes, best first.
-SAFE, HARD, CRASH = "safe", "hard", "crash"
 
 
 @dataclass(frozen=True)
@@ -43,34 +40,6 @@ class TouchdownLimits:
         if descent_rate > self.safe_descent_rate or ground_speed > self.safe_ground_speed or tilt > self.safe_tilt:
             return HARD
         return SAFE
-
-
-@dataclass(frozen=True)
-class Touchdown:
-    """Where and how the lander met the ground.
-
-    Attributes
-    ----------
-    fraction : float
-        Fraction ``s`` of the last step at which the impact happened, in [0, 1].
-    descent_rate : float
-        ``-v . r_hat`` at impact [m/s] (positive downwards).
-    ground_speed : float
-        Horizontal speed at impact [m/s].
-    crashed : bool
-        True when the touchdown is a crash (``classification == "crash"``).
-    tilt : float
-        Angle between the body z axis and the local vertical at impact [rad].
-    classification : str
-        ``safe``, ``hard`` or ``crash`` (:meth:`TouchdownLimits.classify`).
-    """
-
-    fraction: float
-    descent_rate: float
-    ground_speed: float
-    crashed: bool
-    tilt: float = 0.0
-    classification: str = SAFE
 
 
 @dataclass

@@ -60,7 +60,8 @@ class Parachute:
     def _force_B(self, ctx: EvalContext) -> np.ndarray:
         y = ctx.y
         W = ctx.R @ (ctx.inputs.wind_W - y[3:6]) - np.cross(y[10:13], self.attach_B)
-        return (self._k * ctx.rho * math.sqrt(float(W @ W))) * W
+        F_B: np.ndarray = (self._k * ctx.rho * math.sqrt(float(W @ W))) * W
+        return F_B
 
     def add(self, ctx: EvalContext, force_W: np.ndarray, force_B: np.ndarray, torque_B: np.ndarray) -> None:
         self.calls += 1

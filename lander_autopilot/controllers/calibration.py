@@ -92,7 +92,9 @@ class ChuteDragFit:
 
     def add(self, velocity_W: np.ndarray, drag_W: np.ndarray, k: float) -> None:
         """One period: mean velocity [m/s, world], measured drag acceleration [m/s^2, world], ``K`` [1/m]."""
-        self._rows.append((float(k), *(float(x) for x in velocity_W), *(float(x) for x in drag_W)))
+        vx, vy, vz = (float(x) for x in velocity_W)
+        ax, ay, az = (float(x) for x in drag_W)
+        self._rows.append((float(k), vx, vy, vz, ax, ay, az))
 
     def solve(self, scale0: float, wind0_W: np.ndarray) -> AirFit | None:
         """The fit (``None`` with fewer than 8 periods, speeds spanning less than ``MIN_SPAN``, or if it
@@ -114,8 +116,7 @@ class ChuteDragFit:
             J = np.empty((len(K), 3, 4))
             J[:, :, 0] = -(K * n)[:, None] * va
             J[:, :, 1:] = (p[0] * K)[:, None, None] * (n[:, None, None] * np.eye(3) + va[:, :, None] * va[:, None, :] / n[:, None, None])
-            J = J.reshape(-1, 4)
-            step = np.linalg.lstsq(J, -r, rcond=None)[0]
+            step = np.linalg.lstsq(J.reshape(-1, 4), -r, rcond=None)[0]
             p = p + step
             if float(np.abs(step).max()) < 1e-6 * max(1.0, float(np.abs(p).max())):
                 break

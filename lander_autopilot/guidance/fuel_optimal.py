@@ -210,7 +210,7 @@ class _FixedTimeProgram:
         s = cp.Variable(N + 1)
         ones = np.ones((N, 1))
         acc = u  # the acceleration other than gravity at the nodes: thrust, and drag when modelled
-        cons: list = []
+        cons: list[Any] = []
         if problem.drag is not None:
             # a_D = c0 + J v, linearised about the last solution (module docstring)
             self.drag_c0 = cp.Parameter((N + 1, 3))
@@ -256,7 +256,7 @@ class _FixedTimeProgram:
         self.program = cp.Problem(cp.Maximize(objective), cons)
 
     @staticmethod
-    def _end(problem: DescentProblem, r_end: Any, v_end: Any) -> list:
+    def _end(problem: DescentProblem, r_end: Any, v_end: Any) -> list[Any]:
         """The end's constraints: at the target (its altitude only with ``free_horizontal``) at rest,
         or within ``end_band`` of its altitude under ``end_speed``."""
         import cvxpy as cp

@@ -60,7 +60,7 @@ def test_a_snapshot_from_older_code_gets_the_current_design_and_keeps_its_state(
     fresh = make_controller("deorbit", vehicle)
     old.descent.drag_scale = 0.87  # learnt under the chute
     del old.descent.heading_W
-    del old.descent.stop_above  # a class attribute until stop 41, not pickled
+    del old.descent.stop_above  # as pickled by code where it was a class attribute
     assert not np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
     tool._fill_missing(old, fresh)
     assert np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)

@@ -56,8 +56,8 @@ from what the body's axis gives at the start (exact over each step), so the QP c
 the lag. Planned as instant, the 200 km scene's dispersed descents began the hover with up to
 1 m/s of drift (median fuel 1.11 x the optimum over 30 cases; with the lag 1.03 x).
 
-History (docs/deorbit.md): a tracking MPC (quadratic cost about the reference at 0.97 of the thrust)
-flew 1.042 x the optimum from the common handover case: smoothing the reference's bang-bang switch
+Why minimum fuel and not tracking: a tracking MPC (quadratic cost about the reference at 0.97 of the
+thrust) flies 1.042 x the optimum from the common handover case: smoothing the reference's bang-bang switch
 and its late end cost 3 %. Minimising the fuel itself flies 1.004 x there.
 
 Why this solver: the fuel is a sum of second-order-cone norms and the thrust and pointing limits are

@@ -129,8 +129,7 @@ class DescentProblem:
     altitude wherever it is cheapest (a hover, not a landing spot); the glide slope then has no apex
     and is not applied. ``end_band`` [m] and ``end_speed`` [m/s] relax the end to a tolerance: within
     ``end_band`` of the target's altitude and under ``end_speed`` (both convex; 0: exactly there, at
-    rest), the end of a flight judged by a hover band (docs/deorbit.md, "The band's entry and the
-    hover's tolerance").
+    rest), the end of a flight judged by a hover band (docs/deorbit.md, "Measured results").
     """
 
     position_L: np.ndarray

@@ -87,7 +87,12 @@ def _summary(factory: object) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lander_autopilot.controllers.registry import BUILTINS, accepted_parameters, available_controllers, parameter_table
+    from lander_autopilot.controllers.registry import (
+        BUILTINS,
+        accepted_parameters,
+        available_controllers,
+        parameter_table,
+    )
 
     if args.update_docs:
         for path in update_docs():

@@ -94,7 +94,7 @@ def test_fuel_against_the_convex_optimum_from_the_same_state(flights, optimum_fu
     # Nothing flies below the optimum, up to its own discretisation (60 nodes: ~1e-3, measured 6e-5
     # between 30 and 60 nodes) and the convergence test of its drag iteration (1e-3 of the fuel).
     assert min(ratios.values()) >= 1 - 2e-3
-    # issue 14's acceptance with no dispersions: 1.03 times the optimum, for both laws
+    # the acceptance with no dispersions: 1.03 times the optimum, for both laws
     assert ratios["deorbit"] <= 1.03
     assert ratios["deorbit-mpc"] <= 1.03
 

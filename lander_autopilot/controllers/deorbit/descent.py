@@ -122,7 +122,7 @@ class DescentToAltitude(LandingController):
     wind's vertical part moves the airspeed, so the drag no longer scales as ``v^2``), and the limb
     is that ODE's, ``dh/dv = v / (a_b + D(v))``, integrated and inverted each period. On the learnt
     scale alone the fuel grows with the vertical wind: a scale learnt at the canopy's terminal speed
-    reads an updraft as denser air (docs/deorbit.md, "Online estimation").
+    reads an updraft as denser air (:class:`.estimation.OnlineEstimator`).
 
     Thrust acceleration along up: ``a_U = g + dv_d/dt + c h' |h'| + k(m, d) (T_v / m) (v_d - h')``,
     ``dv_d/dt = (a_b + c v_d^2) h' / v_d`` (chain rule, capped at the limb's own deceleration as
@@ -296,7 +296,7 @@ class DescentToAltitude(LandingController):
         ``tau + lag`` at the end, so the windiest flights begin the hover drifting
         (``test_braking_takes_the_drift_out_before_its_shorter_end``; every pair in 0.45-0.55 s
         and 0.6-1.2 s gave the same count of flights within 1.05 x the optimum over both de-orbit
-        sweeps, docs/deorbit.md). The loop's integral is held at 0 (it winds up on the drift while
+        sweeps). The loop's integral is held at 0 (it winds up on the drift while
         coasting).
         """
         if self.floor <= 0.0 or self.mode == "coast":

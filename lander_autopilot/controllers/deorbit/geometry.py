@@ -40,7 +40,7 @@ class AxisIntegral:
     correction added to the axis asked for is ``(1 / time)`` times the integral of ``wanted - flown``
     (each the axis's horizontal over its vertical part, ENU ``(east, north)``), at most ``limit`` in
     norm. For a braking's few seconds only: held on through a 30 s hover it set the horizontal loop
-    oscillating (docs/deorbit.md, "The hover's take-over").
+    oscillating (:class:`.hover.HoverCapture`).
     """
 
     def __init__(self, time: float, limit: float) -> None:

@@ -191,6 +191,16 @@ class LandingController(GroundSpeedController):
         self._spinning = False
         self._dt = 0.1  # [s] control period, measured between updates
 
+    @property
+    def mass(self) -> float:
+        """The mass [kg] the law plans with: the vehicle's at the last update (a full tank before one).
+        Set it to evaluate the law's design (its braking, its scheduled gain) at another mass."""
+        return self._mass
+
+    @mass.setter
+    def mass(self, value: float) -> None:
+        self._mass = float(value)
+
     # --- profile ------------------------------------------------------------------------------
 
     def braking_acceleration(self, mass: float, g: float) -> float:

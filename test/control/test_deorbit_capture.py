@@ -186,7 +186,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     wind the braking planned on (its integral preset), not from zero."""
     controller = DeorbitController(lander("canted"))
     law, hover = controller.descent, controller.hover
-    law.drag_k, law._mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
+    law.drag_k, law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
     law.drift_W = np.array([0.0, -5.0, 0.0])  # no air fitted: the drift is the wind (world = ENU here)
     L = np.eye(3)
     h = 500.0

@@ -79,8 +79,8 @@ def test_mpc_thrust_keeps_the_thrust_and_tilt_limits(flights):
     assert len(thrusts) > 10
     for T in thrusts:
         mag = float(np.linalg.norm(T))
-        assert mag <= ctrl.axial * (1 + 1e-6)
-        if mag > 1e-3 * ctrl.axial:
+        assert mag <= ctrl.mpc_descent.axial * (1 + 1e-6)
+        if mag > 1e-3 * ctrl.mpc_descent.axial:
             assert math.acos(min(1.0, T[2] / mag)) <= ctrl.max_tilt + 1e-6
 
 

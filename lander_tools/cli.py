@@ -27,6 +27,7 @@ from typing import NoReturn
 SUMMARIES: dict[str, str] = {
     "fly": "fly a scenario: simulator + autopilot on this machine, optionally recorded to a bag",
     "scenes": "list the scenarios that `lander fly` accepts",
+    "controllers": "list the controllers, or one controller's parameter table (--markdown for the docs)",
     "design": "control design report for a scenario (linearisation, gains, poles)",
     "analyse": "metrics and plots from recorded flights (bags)",
     "record": "record topics to a rosbag2 bag (MCAP or sqlite3) until Ctrl-C",

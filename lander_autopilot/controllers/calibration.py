@@ -74,9 +74,10 @@ class ChuteDragFit:
     and a modelled ``K = sum(1/2 Cd A) rho_model(h) / m_model`` [1/m]; the model is
     ``a = -s K |v - w| (v - w)`` with four unknowns, ``s`` and the wind ``w``. Why both: the wind's
     vertical part changes the airspeed, and so the drag, by a share that grows as the fall slows.
-    A scale alone, learnt at the canopy's terminal speed (~40 m/s), over-predicted the drag of the
-    braking below by 0.2-0.35 m/s^2 with 1.1 m/s of downdraft (200 km sweep, case 188), and the
-    MPC, braking on it at its thrust bound, stopped the fall 7 m under the hover. The fall from the
+    A scale alone, learnt at the canopy's terminal speed (~40 m/s), over-predicts the drag of the
+    braking below by 0.2-0.35 m/s^2 with 1.1 m/s of downdraft (a dispersed 200 km flight: density
+    -12.9 %, ``test_calibration.py``), and the MPC, braking on it at its thrust bound, stopped the
+    fall 7 m under the hover. The fall from the
     chute's opening (~180 m/s, inclined) to its terminal speed separates the two: on that case the
     fit flown in the loop gives ``s`` 0.866 and 1.18 m/s of downdraft (true: 0.866 with the dry
     mass's share, 1.13). Solved by Gauss-Newton
@@ -92,7 +93,9 @@ class ChuteDragFit:
 
     def add(self, velocity_W: np.ndarray, drag_W: np.ndarray, k: float) -> None:
         """One period: mean velocity [m/s, world], measured drag acceleration [m/s^2, world], ``K`` [1/m]."""
-        self._rows.append((float(k), *(float(x) for x in velocity_W), *(float(x) for x in drag_W)))
+        vx, vy, vz = (float(x) for x in velocity_W)
+        ax, ay, az = (float(x) for x in drag_W)
+        self._rows.append((float(k), vx, vy, vz, ax, ay, az))
 
     def solve(self, scale0: float, wind0_W: np.ndarray) -> AirFit | None:
         """The fit (``None`` with fewer than 8 periods, speeds spanning less than ``MIN_SPAN``, or if it
@@ -114,8 +117,7 @@ class ChuteDragFit:
             J = np.empty((len(K), 3, 4))
             J[:, :, 0] = -(K * n)[:, None] * va
             J[:, :, 1:] = (p[0] * K)[:, None, None] * (n[:, None, None] * np.eye(3) + va[:, :, None] * va[:, None, :] / n[:, None, None])
-            J = J.reshape(-1, 4)
-            step = np.linalg.lstsq(J, -r, rcond=None)[0]
+            step = np.linalg.lstsq(J.reshape(-1, 4), -r, rcond=None)[0]
             p = p + step
             if float(np.abs(step).max()) < 1e-6 * max(1.0, float(np.abs(p).max())):
                 break

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from lander_sim.fast.lander_kernel import njit
+from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]  # numba's, as the kernels use it
 from lander_sim.physics.constants import GM_MARS, MARS_RADIUS
 from lander_sim.physics.rotation import euler_to_quat, quat_conj
 

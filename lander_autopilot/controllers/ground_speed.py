@@ -110,6 +110,11 @@ class GroundSpeedController(SumController):
         #: World vector the demand body x is kept nearest to; None: east (:meth:`heading_axis`).
         self.heading_W: np.ndarray | None = None
 
+    @property
+    def velocity_integral(self) -> np.ndarray:
+        """The outer loop's integral of the velocity error, ENU ``(east, north)`` [m] (a copy)."""
+        return self._integral.copy()
+
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:

@@ -64,11 +64,9 @@ from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
-from ._params import matrix_param, positive_param
 from .base import (
     REQUEST_DEPLOY_PARACHUTE,
     REQUEST_LANDING_UNREACHABLE,
-    ControllerError,
     ControlOutput,
     Demand,
     Request,
@@ -76,21 +74,35 @@ from .base import (
 from .combined import Mix
 from .failure import ChuteTorqueModel, SpinAllocation, ThreeThrusterAllocation, ThrusterFailureDetector
 from .ground_speed import GroundSpeedController
+from .params import (
+    Param,
+    ParamTable,
+    below,
+    boolean,
+    design_fuel,
+    finite,
+    fraction_open,
+    poles,
+    positive,
+)
 
 MODES = ("coast", "braking", "flare")
+
+#: The descent laws leave their coast mode once they ask for a thrust acceleration along up of at
+#: least this fraction of gravity [-]: under it the thrust would tilt nothing (module docstring),
+#: and a law coasting above its braking curve asks for less than nothing.
+COAST_THRESHOLD_G = 0.1
+
+#: [m^2] ``1/2 Cd A`` of the open canopy: its drag is ``CHUTE_DRAG_K rho v^2``
+CHUTE_DRAG_K = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
 
 
 class LandingController(GroundSpeedController):
     """Lands: descent-rate profile + ground speed held at zero + parachute + fuel watch (module docstring).
 
-    Parameters (SI): ``touchdown_rate`` ``v_td`` [m/s], ``flare_rate`` ``k_f`` [1/s],
-    ``brake_fraction``, ``descent_gain`` ``k_v`` [1/s], ``touchdown_tilt`` [rad] (tilt limit at
-    contact), ``tilt_height`` [m] (height over which the tilt limit shrinks to it), ``parachute``
-    (use it), ``chute_min_altitude`` [m], ``chute_margin``, ``probe_height`` [m] (height above contact
-    below which the coast under the canopy is probed; 0: never), ``probe_throttle`` (added on
-    every thruster), ``probe_period`` [s], ``probe_time`` [s], ``max_tilt``, ``velocity_poles``,
-    ``attitude_poles``, ``design_fuel``. The spinning descent's settings are class attributes
-    (``SPIN_MIN`` ... ``LONE_TOUCHDOWN``), each with the measurement that chose it.
+    Parameters: the table :attr:`PARAMS` (``lander controllers landing``; ``v_td``, ``k_f``, ``k_v``
+    are ``touchdown_rate``, ``flare_rate``, ``descent_gain``). The spinning descent's settings are
+    class attributes (``SPIN_MIN`` ... ``LONE_TOUCHDOWN``), each with the measurement that chose it.
     """
 
     name: ClassVar[str] = "landing"
@@ -98,51 +110,57 @@ class LandingController(GroundSpeedController):
     #: flight the watch cannot read may switch it off (:class:`..deorbit.DescentToAltitude`).
     detects_failures: ClassVar[bool] = True
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        touchdown_rate: float = 0.25,
-        flare_rate: float = 0.3,
-        brake_fraction: float = 0.5,
-        descent_gain: float = 1.5,
-        touchdown_tilt: float = 0.06,
-        tilt_height: float = 20.0,
-        parachute: bool = True,
-        chute_min_altitude: float = 1000.0,
-        chute_margin: float = 0.5,
-        probe_height: float = 2000.0,
-        probe_throttle: float = 0.25,
-        probe_period: float = 2.0,
-        probe_time: float = 0.3,
-        max_tilt: float = 0.7,
-        velocity_poles: object = (-0.45, -0.5),
-        attitude_poles: object = (-2.0,) * 6,
-        design_fuel: float | None = None,
-    ) -> None:
+    PARAMS: ClassVar[ParamTable] = ParamTable((
+        Param("touchdown_rate", 0.25, "m/s", "> 0", "descent rate at contact (the flare limb's end)", positive),
+        Param("flare_rate", 0.3, "1/s", "> 0", "the flare limb's exponential rate: its descent rate falls by this per metre",
+              positive),
+        Param("brake_fraction", 0.5, "-", "(0, 1)",
+              "braking limb's deceleration, of the net thrust (the rest: margin for thrust and mass errors)",
+              fraction_open),
+        Param("descent_gain", 1.5, "1/s", "> 0", "gain of the descent-rate loop", positive),
+        Param("touchdown_tilt", 0.06, "rad", "> 0", "tilt limit at contact", positive),
+        Param("tilt_height", 20.0, "m", "> 0", "height above contact over which the tilt limit shrinks to it", positive),
+        Param("parachute", True, "-", "true, false", "ask for the chute when it would survive", boolean),
+        Param("chute_min_altitude", 1000.0, "m", "finite", "lowest height above contact the chute is asked for at",
+              finite),
+        Param("chute_margin", 0.5, "-", "> 0", "fraction of the canopy's airspeed and drag limits it is opened within",
+              positive),
+        Param("probe_height", 2000.0, "m", "finite",
+              "height above contact below which the coast under the canopy is probed for a dead thruster (0: never)",
+              finite),
+        Param("probe_throttle", 0.25, "-", "> 0", "probe burn's throttle, added on every thruster", positive),
+        Param("probe_period", 2.0, "s", "> 0", "time between probe burns", positive),
+        Param("probe_time", 0.3, "s", "> 0", "length of a probe burn", positive),
+        Param("max_tilt", 0.7, "rad", "(0, 1.3)", "tilt limit of the thrust from the vertical above tilt_height",
+              below(1.3, "1.3 rad (75 deg)")),
+        Param("velocity_poles", (-0.45, -0.5), "1/s", "2 poles, Re < 0", "the ground-speed loop's poles (per axis)",
+              poles(2)),
+        Param("attitude_poles", (-2.0,) * 6, "1/s", "6 poles, Re < 0", "the quaternion attitude law's poles", poles(6)),
+        Param("design_fuel", None, "kg", "none or > 0", "fuel the laws are designed at (none: a full tank)", design_fuel),
+    ))
+
+    def __init__(self, vehicle: Vehicle, **params: object) -> None:
+        p = self.PARAMS.resolve(params, self.name)
         super().__init__(
-            vehicle, velocity_poles=velocity_poles, max_tilt=max_tilt, attitude_poles=attitude_poles, design_fuel=design_fuel
+            vehicle, velocity_poles=p["velocity_poles"], max_tilt=p["max_tilt"], attitude_poles=p["attitude_poles"],  # type: ignore[arg-type]
+            design_fuel=p["design_fuel"],  # type: ignore[arg-type]
         )
-        self.v_td = positive_param("touchdown_rate", touchdown_rate)
-        self.k_f = positive_param("flare_rate", flare_rate)
-        self.brake_fraction = positive_param("brake_fraction", brake_fraction)
-        if self.brake_fraction >= 1.0:
-            raise ControllerError(f"brake_fraction: expected a fraction in (0, 1), got {brake_fraction!r}")
-        self.k_v = positive_param("descent_gain", descent_gain)
-        self.touchdown_tilt = positive_param("touchdown_tilt", touchdown_tilt)
-        self.tilt_height = positive_param("tilt_height", tilt_height)
-        if not isinstance(parachute, (bool, np.bool_)):
-            raise ControllerError(f"parachute: expected true or false, got {parachute!r}")
-        self.use_parachute = bool(parachute)
-        self.chute_min_altitude = float(matrix_param("chute_min_altitude", chute_min_altitude, ()))
-        self.chute_margin = positive_param("chute_margin", chute_margin)
+        self.v_td = float(p["touchdown_rate"])  # type: ignore[arg-type]  # each checked by its row
+        self.k_f = float(p["flare_rate"])  # type: ignore[arg-type]
+        self.brake_fraction = float(p["brake_fraction"])  # type: ignore[arg-type]
+        self.k_v = float(p["descent_gain"])  # type: ignore[arg-type]
+        self.touchdown_tilt = float(p["touchdown_tilt"])  # type: ignore[arg-type]
+        self.tilt_height = float(p["tilt_height"])  # type: ignore[arg-type]
+        self.use_parachute = bool(p["parachute"])
+        self.chute_min_altitude = float(p["chute_min_altitude"])  # type: ignore[arg-type]
+        self.chute_margin = float(p["chute_margin"])  # type: ignore[arg-type]
         self.half_size = 0.5 * vehicle.size
         self.mdot_max = sum(t.fuel_rate for t in vehicle.thrusters if t.enabled)  # [kg/s] at full throttle
-        self._chute_k = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2  # [m^2]
-        self.probe_height = float(matrix_param("probe_height", probe_height, ()))
-        self.probe_throttle = positive_param("probe_throttle", probe_throttle)
-        self.probe_period = positive_param("probe_period", probe_period)
-        self.probe_time = positive_param("probe_time", probe_time)
+        self._chute_k = CHUTE_DRAG_K
+        self.probe_height = float(p["probe_height"])  # type: ignore[arg-type]
+        self.probe_throttle = float(p["probe_throttle"])  # type: ignore[arg-type]
+        self.probe_period = float(p["probe_period"])  # type: ignore[arg-type]
+        self.probe_time = float(p["probe_time"])  # type: ignore[arg-type]
         self.failure_detector = ThrusterFailureDetector(vehicle)
         self.chute_model = ChuteTorqueModel(vehicle)
         self._T_v_all = self.T_v
@@ -173,6 +191,16 @@ class LandingController(GroundSpeedController):
         self._spinning = False
         self._dt = 0.1  # [s] control period, measured between updates
 
+    @property
+    def mass(self) -> float:
+        """The mass [kg] the law plans with: the vehicle's at the last update (a full tank before one).
+        Set it to evaluate the law's design (its braking, its scheduled gain) at another mass."""
+        return self._mass
+
+    @mass.setter
+    def mass(self, value: float) -> None:
+        self._mass = float(value)
+
     # --- profile ------------------------------------------------------------------------------
 
     def braking_acceleration(self, mass: float, g: float) -> float:
@@ -201,7 +229,7 @@ class LandingController(GroundSpeedController):
         self._h_c = h - self.half_size
         v_d, slope, flare = self.descent_rate_demand(h - self.half_size, a_b)
         a_up = g + self.k_v * (v_d - hd) + slope * hd
-        stage = 2 if flare else (1 if a_up >= 0.1 * g else 0)
+        stage = 2 if flare else (1 if a_up >= COAST_THRESHOLD_G * g else 0)
         if stage > MODES.index(self.mode):
             self.mode = MODES[stage]
         return a_up
@@ -248,7 +276,24 @@ class LandingController(GroundSpeedController):
         c_v = self.T_v / self.mdot_max
         return mass * (1.0 - math.exp(-dv / c_v))
 
-    def _chute_request(self, h: float, hd: float, speed: float) -> Request | None:
+    @property
+    def chute_requested(self) -> bool:
+        """True once the law has asked for the chute (or been told it is out)."""
+        return self._chute_requested
+
+    def assume_chute_requested(self, requested: bool) -> None:
+        """Start as if the chute had (or had not) been asked for: a flight begun under the open chute
+        must not ask again, and its failure watch models the canopy."""
+        self._chute_requested = bool(requested)
+
+    def rearm_unreachable(self) -> None:
+        """Let the ``landing_unreachable`` request be raised again (a caller that withheld it)."""
+        self._unreachable_raised = False
+
+    def chute_request(self, h: float, hd: float, speed: float) -> Request | None:
+        """The ``deploy_parachute`` request, once: descending (``hd`` [m/s] under -1) inside the
+        atmosphere at altitude ``h`` [m] above ``chute_min_altitude`` over contact, with the chute's
+        predicted drag and airspeed ``speed`` [m/s] under ``chute_margin`` of its limits; else None."""
         if not self.use_parachute or self._chute_requested:
             return None
         if hd > -1.0 or h - self.half_size < self.chute_min_altitude or h >= c.EXOSPHERE_ALTITUDE:
@@ -399,7 +444,7 @@ class LandingController(GroundSpeedController):
         h = float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
         hd = float(self.v_local[2])
         requests: list[Request] = []
-        chute = self._chute_request(h, hd, float(np.linalg.norm(state.v_W)))
+        chute = self.chute_request(h, hd, float(np.linalg.norm(state.v_W)))
         if chute is not None:
             requests.append(chute)
         if not self._unreachable_raised:

@@ -29,6 +29,7 @@ from .deorbit import DeorbitController
 from .deorbit_mpc import DeorbitMpcController
 from .ground_speed import GroundSpeedController
 from .landing import LandingController
+from .params import ParamTable
 
 ENTRY_POINT_GROUP = "mars_lander.controllers"
 
@@ -66,9 +67,13 @@ def available_controllers() -> list[str]:
 
 
 def _accepted(factory: Factory) -> list[str] | None:
-    """The keyword parameters ``factory`` takes after the vehicle, sorted; ``None`` if it takes any
-    (a plain ``**params``: it checks them itself). ``**params: Unpack[SomeTypedDict]`` takes that
-    TypedDict's keys (the summed laws' :class:`~.combined.SumParams`)."""
+    """The keyword parameters ``factory`` takes after the vehicle, sorted: its parameter table's
+    (:class:`~.params.ParamTable` as ``PARAMS``) if it has one, else its signature's; ``None`` if
+    it takes any (a plain ``**params``: it checks them itself). ``**params: Unpack[SomeTypedDict]``
+    takes that TypedDict's keys (the summed laws' :class:`~.combined.SumParams`)."""
+    table = getattr(factory, "PARAMS", None)
+    if isinstance(table, ParamTable):
+        return sorted(table.names)
     try:
         ps = list(inspect.signature(factory, eval_str=True).parameters.values())
     except Exception:  # noqa: BLE001 - a plug-in's annotations may not evaluate here: read them as written
@@ -93,6 +98,30 @@ def _check_params(name: str, factory: Factory, params: dict[str, object]) -> Non
         raise ControllerError(
             f"controller {name!r}: unknown parameter(s) {', '.join(unknown)}; accepted: {', '.join(allowed) or '(none)'}"
         )
+
+
+def parameter_table(name: str) -> ParamTable | None:
+    """The parameter table of controller ``name`` (None for a law without one: a plug-in, or a law
+    whose parameters are its constructor's keywords); ControllerError for an unknown name."""
+    factory: Factory | None = BUILTINS.get(name)
+    if factory is None:
+        ep = _plugins().get(name)
+        if ep is None:
+            raise ControllerError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
+        factory = ep.load()
+    table = getattr(factory, "PARAMS", None)
+    return table if isinstance(table, ParamTable) else None
+
+
+def accepted_parameters(name: str) -> list[str] | None:
+    """The keyword parameters controller ``name`` accepts, sorted (None: it checks them itself)."""
+    factory: Factory | None = BUILTINS.get(name)
+    if factory is None:
+        ep = _plugins().get(name)
+        if ep is None:
+            raise ControllerError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
+        factory = ep.load()
+    return _accepted(factory)
 
 
 def make_controller(name: str, vehicle: Vehicle, **params: object) -> Controller:

@@ -97,7 +97,7 @@ def balanced_thrust(vehicle: Vehicle) -> tuple[float, float]:
     burn gets less (e.g. 0.95 of ``T_v`` with +-3 % of thrust and 0.5 degrees of cant per thruster).
     The point-mass yardstick with this bound is the least fuel the rigid vehicle can reach with no
     other torque; under a canopy it is not a bound (its torque can cancel the thrusters'): dispersed
-    flights measure down to 0.98 x it (docs/deorbit.md, "The band's entry and the hover's tolerance (stop 38)").
+    flights of the de-orbit sweeps measure down to 0.98 x it.
     """
     from scipy.optimize import linprog
 

@@ -129,8 +129,7 @@ class DescentProblem:
     altitude wherever it is cheapest (a hover, not a landing spot); the glide slope then has no apex
     and is not applied. ``end_band`` [m] and ``end_speed`` [m/s] relax the end to a tolerance: within
     ``end_band`` of the target's altitude and under ``end_speed`` (both convex; 0: exactly there, at
-    rest), the end of a flight judged by a hover band (docs/deorbit.md, "The band's entry and the
-    hover's tolerance").
+    rest), the end of a flight judged by a hover band (docs/deorbit.md, "Measured results").
     """
 
     position_L: np.ndarray
@@ -210,7 +209,7 @@ class _FixedTimeProgram:
         s = cp.Variable(N + 1)
         ones = np.ones((N, 1))
         acc = u  # the acceleration other than gravity at the nodes: thrust, and drag when modelled
-        cons: list = []
+        cons: list[Any] = []
         if problem.drag is not None:
             # a_D = c0 + J v, linearised about the last solution (module docstring)
             self.drag_c0 = cp.Parameter((N + 1, 3))
@@ -256,7 +255,7 @@ class _FixedTimeProgram:
         self.program = cp.Problem(cp.Maximize(objective), cons)
 
     @staticmethod
-    def _end(problem: DescentProblem, r_end: Any, v_end: Any) -> list:
+    def _end(problem: DescentProblem, r_end: Any, v_end: Any) -> list[Any]:
         """The end's constraints: at the target (its altitude only with ``free_horizontal``) at rest,
         or within ``end_band`` of its altitude under ``end_speed``."""
         import cvxpy as cp

@@ -81,17 +81,24 @@ def test_chute_drag_fit_separates_the_vertical_wind_from_the_scale_that_a_termin
     assert terminal.solve(1.0, np.zeros(3)) is None
 
 
+#: The 200 km sweep's case with thin air (-12.9 %) and a downdraft (1.1 m/s) at the site
+THIN_AIR_DOWNDRAFT = 188
+
+
 def test_a_dispersed_flight_measures_its_thrust_in_the_burn_and_fits_its_air_under_the_chute():
-    """200 km sweep case 188 (thrust -0.55 %, dry mass +1.1 %, density -12.9 %, 1.13 m/s of downdraft
-    at the site), flown core-only to its powered descent: the law's estimates against the case."""
+    """A named regression of the 200 km sweep, thin air in a downdraft (its case 188: thrust -0.55 %,
+    dry mass +1.1 %, density -12.9 %, 1.13 m/s of downdraft at the site), flown core-only to its
+    powered descent: the law's estimates against the case's truth."""
     from lander_autopilot.controllers.deorbit import Phase
     from lander_tools.sweep.dispersion import draw_case
     from lander_tools.sweep.flight import flown_periods
     from lander_tools.sweep.spec import load_spec
 
     spec = load_spec(SPEC)
-    case = draw_case(spec, 188, 4)
-    for _t, state, ctrl, _sim in flown_periods(spec, 0, 188):  # noqa: B007 - state, ctrl: read after the loop
+    case = draw_case(spec, THIN_AIR_DOWNDRAFT, 4)
+    wind_W = np.asarray(case.wind_mean_W)
+    assert case.density_error < -0.1  # the regression this is: thin air ...
+    for _t, state, ctrl, _sim in flown_periods(spec, 0, THIN_AIR_DOWNDRAFT):  # noqa: B007 - state, ctrl: read after the loop
         if ctrl.phase is Phase.POWERED:
             break
     else:
@@ -105,6 +112,7 @@ def test_a_dispersed_flight_measures_its_thrust_in_the_burn_and_fits_its_air_und
     fit = ctrl.air
     assert fit is not None and fit.samples > 500
     up = state.r_W / np.linalg.norm(state.r_W)
+    assert float(wind_W @ up) < -1.0  # ... and a downdraft over 1 m/s
     # measured over modelled drag per modelled mass: the density's error and the mass's together
     true_air = (1.0 + case.density_error) * mass / (mass + ctrl.vehicle.dry_mass * case.mass_error)
     # the drag scale learnt at the canopy's terminal speed alone is 6 % off here (0.818 against

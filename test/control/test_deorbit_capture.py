@@ -1,4 +1,4 @@
-"""The end of the de-orbit's powered descent (issue 14's dispersed fuel): the braking counts only on
+"""The end of the de-orbit's powered descent (the dispersed sweeps' fuel): the braking counts only on
 the collective the attitude law leaves it, and the hover captures the band without setting the
 lander moving again. Core-only, fast."""
 from __future__ import annotations
@@ -51,14 +51,15 @@ def test_mpc_last_braking_command_stops_the_fall_within_its_period_not_into_a_cl
     ctrl = DeorbitMpcController(vehicle)
     ctrl.reset()
     drag = DragModel(k=20.0, surface_density=0.02, scale_height=11100.0, wind_L=(1.0, 0.0, 0.5))
-    ctrl.mpc = SimpleNamespace(drag=drag)  # the plan's drag model is all the cap reads of the QP
+    part = ctrl.mpc_descent  # the MPC's powered-descent part
+    part.mpc = SimpleNamespace(drag=drag)  # the plan's drag model is all the cap reads of the QP
     mass, h, dt = vehicle.mass(50.0), 500.0, ctrl.settings.hold_time
     r_W = np.array([0.0, 0.0, c.MARS_RADIUS + h])
     g = c.GM_MARS / float(r_W @ r_W)
     v_L = np.array([0.3, -0.1, -0.25])  # 0.25 m/s still to stop
     axis = np.array([0.1, 0.0, 1.0]) / math.hypot(0.1, 1.0)  # the thrust axis flown (tilted)
     asked = 2.0 * mass * g * axis  # the QP's last braking command: ~g over the weight, 0.37 m/s in 0.1 s
-    T = ctrl._stop_within_period(asked, mass, h, v_L, float(axis[2]), r_W)
+    T = part.stop_within_period(asked, mass, h, v_L, float(axis[2]), r_W)
     # flown along the axis for one period, the vertical speed ends at rest, not climbing
     drag_up = float(drag.acceleration(np.array([[0.0, 0.0, h]]), v_L[None, :], np.array([mass]))[0, 2])
     v_end = v_L[2] + dt * (float(np.linalg.norm(T)) * axis[2] / mass - g + drag_up)
@@ -66,8 +67,8 @@ def test_mpc_last_braking_command_stops_the_fall_within_its_period_not_into_a_cl
     np.testing.assert_allclose(T / np.linalg.norm(T), axis, rtol=0, atol=1e-15)  # its direction kept
     # a command that does not reverse the fall, or a lander already climbing: unchanged
     gentle = 0.9 * mass * g * axis
-    assert ctrl._stop_within_period(gentle, mass, h, v_L, float(axis[2]), r_W) is gentle
-    assert ctrl._stop_within_period(asked, mass, h, np.array([0.0, 0.0, 0.1]), float(axis[2]), r_W) is asked
+    assert part.stop_within_period(gentle, mass, h, v_L, float(axis[2]), r_W) is gentle
+    assert part.stop_within_period(asked, mass, h, np.array([0.0, 0.0, 0.1]), float(axis[2]), r_W) is asked
 
 
 def test_braking_limb_runs_on_the_collective_left():
@@ -97,8 +98,8 @@ def test_braking_limb_ends_at_rest_inside_the_band_above_the_floor():
 
 def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded():
     """Integral action on the thrust axis while braking (DescentToAltitude.axis_bias): a steady
-    shortfall of the axis flown grows the correction at ``shortfall / AXIS_TIME`` a second, up to
-    ``AXIS_MAX``; none while coasting."""
+    shortfall of the axis flown grows the correction at ``shortfall / axis_time`` a second, up to
+    ``axis_limit``; none while coasting."""
     law = DeorbitController(lander("canted")).descent
     L = np.eye(3)  # local ENU axes (rows) in world coordinates: here the world's own
     tilt = 0.05  # the axis flown: 0.05 rad toward east (rows: body axes in world coordinates)
@@ -113,11 +114,11 @@ def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded()
     law.mode = "braking"
     assert np.array_equal(law.axis_bias(0.0, state, L, wanted), np.zeros(2))  # no history yet
     bias = law.axis_bias(0.1, state, L, wanted)
-    expected = 0.1 / law.AXIS_TIME * (wanted - np.array([flown, 0.0]))
+    expected = 0.1 / law.axis_time * (wanted - np.array([flown, 0.0]))
     assert bias == pytest.approx(expected, rel=1e-9)
     for k in range(2, 200):
         bias = law.axis_bias(0.1 * k, state, L, wanted)
-    assert float(np.linalg.norm(bias)) == pytest.approx(law.AXIS_MAX, rel=1e-12)
+    assert float(np.linalg.norm(bias)) == pytest.approx(law.axis_limit, rel=1e-12)
     law.mode = "coast"
     assert law.axis_bias(20.0, state, L, wanted) is None
 
@@ -185,7 +186,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     wind the braking planned on (its integral preset), not from zero."""
     controller = DeorbitController(lander("canted"))
     law, hover = controller.descent, controller.hover
-    law.drag_k, law._mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
+    law.drag_k, law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
     law.drift_W = np.array([0.0, -5.0, 0.0])  # no air fitted: the drift is the wind (world = ENU here)
     L = np.eye(3)
     h = 500.0

@@ -1,5 +1,5 @@
 """The de-orbit laws learn the air's density while coasting through the entry, and the chute's
-predicted drag uses it (issue 14: +30 % of air tore the canopy off at 0.9 of its modelled limit).
+predicted drag uses it (+30 % of air tears the canopy off at 0.9 of its modelled limit).
 
 Core-only: scene ``deorbit-200km`` started inside the atmosphere at 22 km, 500 m/s, flight-path
 angle -12 deg, thrust axis retrograde, in the flown atmosphere of a sweep case with the density
@@ -66,11 +66,12 @@ def test_the_chute_waits_for_the_drag_the_denser_air_will_give():
     scene0, _ = _entry_sim(0.0)
     law = make_controller("deorbit", scene0.vehicle).descent
     h = 5000.0
+    from lander_autopilot.controllers.landing import CHUTE_DRAG_K
     from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 
-    speed = math.sqrt(0.85 * c.PARACHUTE_MAX_DRAG / (law._chute_k * MARS_ATMOSPHERE.density(h)))
+    speed = math.sqrt(0.85 * c.PARACHUTE_MAX_DRAG / (CHUTE_DRAG_K * MARS_ATMOSPHERE.density(h)))
     assert speed < law.chute_margin * c.PARACHUTE_MAX_SPEED
-    assert law._chute_request(h, -speed, speed) is not None
+    assert law.chute_request(h, -speed, speed) is not None
     law.reset()
     law.density_scale = 1.3
-    assert law._chute_request(h, -speed, speed) is None
+    assert law.chute_request(h, -speed, speed) is None

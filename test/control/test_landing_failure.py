@@ -106,7 +106,7 @@ def test_a_failure_in_the_coast_under_the_canopy_is_found_by_the_probe_burns():
         sim.step(1)
     assert ctrl.failure_detector.failed == 1
     h_c = float(np.linalg.norm(st.r_W)) - 3386e3 - 0.5
-    assert mode_before == "coast" and ctrl._chute_requested
+    assert mode_before == "coast" and ctrl.chute_requested
     # Found within one probe period of reaching probe_height (at ~44 m/s, 88 m per period).
     assert ctrl.probe_height - 2 * 44.0 * ctrl.probe_period < h_c <= ctrl.probe_height
     assert ctrl.spin is not None and ctrl.spin.lone == 3

@@ -23,6 +23,10 @@ def _rhs(y: np.ndarray, thrust: np.ndarray, delivered: float = 1.0) -> np.ndarra
     return np.r_[y[3:6], delivered * thrust / y[6] - [0.0, 0.0, SURFACE_GRAVITY], -LIMITS.alpha * np.linalg.norm(thrust)]
 
 
+#: The programme alone: no bound on its last second's vertical thrust (``limb_time`` 0)
+PLAIN = MpcSettings(limb_time=0.0)
+
+
 def _fly(mpc: DescentMpc, y: np.ndarray, duration: float, delivered: float = 1.0):
     """RK4, 10 substeps a period (error ~1e-9 m over the flight); yields (t, state, thrust) each period."""
     t, h = 0.0, PERIOD / 10
@@ -40,7 +44,7 @@ def _fly(mpc: DescentMpc, y: np.ndarray, duration: float, delivered: float = 1.0
 
 def test_mpc_flies_the_handover_to_hover_within_the_limits_near_the_fuel_optimum():
     r0, v0, m0 = np.array([300.0, -100.0, 2000.0]), np.array([-15.0, 5.0, -60.0]), 170.0
-    mpc = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET)
+    mpc = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET, settings=PLAIN)
     optimum = solve(DescentProblem(position_L=r0, velocity_L=v0, mass=m0, gravity=SURFACE_GRAVITY,
                                    limits=LIMITS, target_L=TARGET), steps=60)
     reached = None
@@ -78,13 +82,13 @@ def test_the_plan_reserve_is_what_brakes_a_fall_whose_thrust_falls_short():
     # when the thrust falls 3 % short (what the de-orbit sweeps' dispersed thrust, mass and drag
     # model errors add up to): it rides its bound and stops the fall far under the hover. Kept in
     # hand from 1 s ahead (plan_reserve), 4 % stops it in the band, for ~1.3 % more fuel.
-    lower_reference = MpcSettings(reference_thrust_fraction=0.94)
-    reserve = MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04)
+    lower_reference = MpcSettings(reference_thrust_fraction=0.94, limb_time=0.0)
+    reserve = MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04, limb_time=0.0)
     short_err, _ = _stop(lower_reference, 0.97)
     held_err, _ = _stop(reserve, 0.97)
     assert short_err < -20.0
     assert abs(held_err) < 2.0  # the hover band
-    _, fuel_plain = _stop(MpcSettings(), 1.0)
+    _, fuel_plain = _stop(PLAIN, 1.0)
     _, fuel_reserve = _stop(reserve, 1.0)
     # its price with the thrust as modelled: the longer burn's gravity loss, braking at ~0.95 of the
     # thrust instead of 0.99 (1.3 % here)
@@ -99,7 +103,7 @@ def test_the_last_second_stops_the_fall_at_constant_deceleration_nearer_the_targ
     # each period (DescentMpc._last_second).
     # With the de-orbit law's margins (reference at 0.94, 4 % reserve), as modelled and 3 % short:
     for delivered in (1.0, 0.97):
-        qp_err, qp_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04), delivered)
+        qp_err, qp_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04, limb_time=0.0), delivered)
         limb_err, limb_fuel = _stop(MpcSettings(reference_thrust_fraction=0.94, plan_reserve=0.04, limb_time=1.0),
                                     delivered)
         print(f"thrust x{delivered}: stop {qp_err:+.3f} -> {limb_err:+.3f} m, fuel {qp_fuel:.3f} -> {limb_fuel:.3f} kg")

@@ -1,4 +1,4 @@
-"""The de-orbit sweeps' dispersions (issue 14), checked by physics on the flown scene; the hover-hold
+"""The de-orbit sweeps' dispersions, checked by physics on the flown scene; the hover-hold
 criterion on short flights; the new metrics; spec errors naming the key.
 
 Tolerances: geometry identities hold to rounding, 1e-12 relative on quantities of order one

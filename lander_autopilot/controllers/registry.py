@@ -100,27 +100,29 @@ def _check_params(name: str, factory: Factory, params: dict[str, object]) -> Non
         )
 
 
-def parameter_table(name: str) -> ParamTable | None:
-    """The parameter table of controller ``name`` (None for a law without one: a plug-in, or a law
-    whose parameters are its constructor's keywords); ControllerError for an unknown name."""
+def _factory(name: str) -> Factory:
+    """The factory of controller ``name``: a built-in or an entry-point plug-in (loaded);
+    ControllerError naming the available ones for an unknown name."""
     factory: Factory | None = BUILTINS.get(name)
     if factory is None:
         ep = _plugins().get(name)
         if ep is None:
             raise ControllerError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
         factory = ep.load()
+    return factory
+
+
+def parameter_table(name: str) -> ParamTable | None:
+    """The parameter table of controller ``name`` (None for a law without one: a plug-in, or a law
+    whose parameters are its constructor's keywords); ControllerError for an unknown name."""
+    factory = _factory(name)
     table = getattr(factory, "PARAMS", None)
     return table if isinstance(table, ParamTable) else None
 
 
 def accepted_parameters(name: str) -> list[str] | None:
     """The keyword parameters controller ``name`` accepts, sorted (None: it checks them itself)."""
-    factory: Factory | None = BUILTINS.get(name)
-    if factory is None:
-        ep = _plugins().get(name)
-        if ep is None:
-            raise ControllerError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
-        factory = ep.load()
+    factory = _factory(name)
     return _accepted(factory)
 
 
@@ -131,14 +133,7 @@ def make_controller(name: str, vehicle: Vehicle, **params: object) -> Controller
     ones), an unknown parameter (listing the accepted ones), or a parameter of the wrong
     shape or value (naming it and the expected shape).
     """
-    factory: Factory | None = BUILTINS.get(name)
-    if factory is None:
-        ep = _plugins().get(name)
-        if ep is None:
-            raise ControllerError(
-                f"unknown controller {name!r}; available: {', '.join(available_controllers())}"
-            )
-        factory = ep.load()
+    factory = _factory(name)
     _check_params(name, factory, params)
     try:
         ctrl = factory(vehicle, **params)

@@ -129,10 +129,12 @@ def _flight(bag: Path) -> dict[str, list[bytes]]:
     answered = sorted(m.state_sequence for _, m in answers)
     missing, twice = sorted(asked - set(answered)), sorted({s for s in answered if answered.count(s) > 1})
     assert not missing and not twice, f"every state answered exactly once: unanswered {missing}, answered twice {twice}"
-    # Status of the flight proper (after the first control period): how many pre-reset states the
-    # autopilot answered while starting (its `steps` counter, and a wall-clock "state lost" warning
-    # in last_error) depends on start-up timing, not on the flight; everything else must match.
-    status = [(r, m) for r, m in msgs["/autopilot/status"] if 0.0 < stamp_s(m.header.stamp) <= FLIGHT_S]
+    # Status of the flight proper (after the first control period, up to the last state asked: the
+    # autopilot is stopped once the state at FLIGHT_S is out, so whether it reported on that one is
+    # a race, as for its answer): how many pre-reset states the autopilot answered while starting
+    # (its `steps` counter, and a wall-clock "state lost" warning in last_error) depends on start-up
+    # timing, not on the flight; everything else must match.
+    status = [(r, m) for r, m in msgs["/autopilot/status"] if 0.0 < stamp_s(m.header.stamp) < FLIGHT_S - 1e-9]
     status_fields = [(m.header.stamp.sec, m.header.stamp.nanosec, m.controller, m.saturated, m.rejected,
                       m.throttles.tobytes()) for _, m in status]
     return {"state": [r for r, _ in states], "throttle": [r for r, _ in answers], "status": status_fields}

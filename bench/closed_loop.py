@@ -93,9 +93,7 @@ def sweep_rates(flights_per_flight: int, flights_batched: int, workers: int) -> 
     bt_same = run_local(small, workers=workers, progress=False, path="batched")
     big = dataclasses.replace(spec, flights=flights_batched)
     bt = run_local(big, workers=workers, progress=False, path="batched")
-    cpu0 = time.process_time()
-    one = run_local(big, workers=1, progress=False, path="batched")  # in this process: its CPU time is the work
-    cpu = time.process_time() - cpu0
+    one, cpu = batched_cpu(big)
     text = [summary.format_summary(summary.summarise(r.rows, spec.metrics), []) for r in (pf, bt_same)]
     return {
         "per_flight_flights": len(pf.rows), "per_flight_wall_s": pf.wall_time, "per_flight_flights_per_s": pf.flights_per_second,
@@ -103,6 +101,24 @@ def sweep_rates(flights_per_flight: int, flights_batched: int, workers: int) -> 
         "summary_equal": text[0] == text[1], "sweep_workers": workers,
         "batched_1_worker_wall_s": one.wall_time, "batched_1_worker_cpu_s": cpu,
     }
+
+
+def batched_cpu(spec) -> tuple[object, float]:
+    """``spec`` on the batched path with one worker in this process: (its result, CPU seconds),
+    the figure that does not depend on what else the machine is doing."""
+    cpu0 = time.process_time()
+    one = run_local(spec, workers=1, progress=False, path="batched")
+    return one, time.process_time() - cpu0
+
+
+def batched_cpu_rate(flights: int) -> float:
+    """Flights per CPU second of ``sweeps/hover-robustness.yaml`` cut to ``flights`` flights on the
+    batched path, one worker in this process (set-up of each flight included), after a warm-up
+    sweep of 4 flights that loads the compiled loop: the regression guard's figure."""
+    spec = load_spec(C.ROOT / "sweeps" / "hover-robustness.yaml")
+    run_local(dataclasses.replace(spec, flights=4), workers=1, progress=False, path="batched")
+    one, cpu = batched_cpu(dataclasses.replace(spec, flights=flights))
+    return len(one.rows) / cpu
 
 
 def setup_cost(flights: int) -> dict[str, float]:

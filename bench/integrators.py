@@ -143,6 +143,16 @@ def run_dop853(dyn, y0: np.ndarray, T: float, tol: float, repeats: int = 1) -> t
     return y, best, int(stats[2])
 
 
+def compiled_kepler_rate(quick: bool, tol: float = 1e-10) -> float:
+    """Derivative evaluations per second of the compiled DOP853 over one Kepler orbit (e = 0.3) at
+    ``tol``, best of 3 (quick) or 7 calls after one untimed call: the regression guard's figure."""
+    p = next(p for p in _problems(True) if p.name == "kepler")
+    run_dop853(p.dyn, p.y0, p.T, tol)  # compile (or load) outside the timing
+    got = run_dop853(p.dyn, p.y0, p.T, tol, repeats=3 if quick else 7)
+    assert got is not None  # the orbit has a compiled form
+    return got[2] / got[1]
+
+
 def compiled_vs_scipy(quick: bool) -> list[dict]:
     """Our best compiled method against scipy's DOP853 on the Kepler orbit, the descent and the
     torque-free asymmetric top: for each tolerance, scipy's error and wall time, and the cheapest

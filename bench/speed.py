@@ -18,6 +18,7 @@ import tempfile
 import time
 
 import _common as C
+import ceiling
 import numpy as np
 
 from lander_sim import fast
@@ -32,7 +33,8 @@ WIND = [3.0, 1.0, -2.0]
 TARGET = 200_000
 
 
-def _sim() -> Simulation:
+def hover_sim() -> Simulation:
+    """The hover scene at ``DT`` with the bench's fixed throttles and wind."""
     sim = Simulation(load_scene("hover"), dt=DT)
     sim.set_throttles(THROTTLES)
     sim.set_wind(WIND)
@@ -130,18 +132,15 @@ def main(argv: list[str] | None = None) -> int:
         res["startup_cold_s"] = _startup(cache)  # compiles and writes the cache
         res["startup_cached_s"] = _startup(cache)  # loads it
 
-    sim = _sim()
+    sim = hover_sim()
     fl = fast.FastLander(sim.dynamics)
     y0 = sim.y.copy()
-    y, yp = y0.copy(), np.empty(14)
-    fl.advance(y, yp, DT, 10)  # compile/load outside the timing
-    # Kernel: chunks of 1000 steps (10 s of hover) from the same start, so nothing stops early.
-    taken = 0
-    t0 = time.perf_counter()
-    for _ in range(chunks):
-        y[:] = y0
-        taken += fl.advance(y, yp, DT, 1000)
-    res["kernel_steps_per_s"] = taken / (time.perf_counter() - t0)
+    yp = np.empty(14)
+    # Kernel and ceiling (bench/ceiling.py: the same physics fused, written only to be fast),
+    # alternating, chunks of 1000 steps (10 s of hover) from the same start so nothing stops early.
+    side = ceiling.time_side_by_side(fl, y0, ceiling.constants(fl, np.asarray(THROTTLES), np.asarray(WIND)),
+                                     chunks, 3 if args.quick else 5)
+    res.update(side)
     # numpy Dynamics + Verlet path (what Simulation.step runs), same start.
     ref = y0.copy()
     t0 = time.perf_counter()
@@ -162,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     assert fl.advance(yk, yp, DT, n_cmp) == n_cmp
     scale = np.maximum(np.abs(ref), 1e-9)
     res["kernel_vs_numpy_max_rel"] = float(np.max(np.abs(yk - ref) / scale))
+    res["ceiling_vs_kernel_max_rel"] = ceiling.agreement(fl, y0, ceiling.constants(fl, np.asarray(THROTTLES), np.asarray(WIND)), n_cmp)[0]
     n_naive = min(n_naive, n_cmp)
     yn = naive_verlet(y0, n_naive)
     ref_n = y0.copy()
@@ -177,12 +177,16 @@ def main(argv: list[str] | None = None) -> int:
     print(C.table("velocity-Verlet steps per second, one lander (hover scene: gravity, sphere drag + wind, 4 thrusters, rotation), one core",
                   ["implementation", "steps/s", "x naive"],
                   [["compiled kernel (numba)" if fast.HAVE_NUMBA else "kernel (numba missing: plain Python)", f"{res['kernel_steps_per_s']:.0f}", res["kernel_over_naive"]],
+                   ["ceiling: the same physics fused (bench/ceiling.py, not the product)", f"{res['ceiling_steps_per_s']:.0f}",
+                    res["ceiling_steps_per_s"] / res["naive_steps_per_s"]],
                    ["numpy Dynamics path (Simulation)", f"{res['numpy_steps_per_s']:.0f}", res["numpy_over_naive"]],
                    ["naive numpy", f"{res['naive_steps_per_s']:.0f}", 1.0]]))
     print(C.table("start-up and agreement", ["figure", "value"], [
         ["numba cold start (import + compile), s", res["startup_cold_s"]],
         ["numba cached start (import + cache load), s", res["startup_cached_s"]],
+        [f"kernel / ceiling (alternating, medians of {res['rounds']})", res["kernel_over_ceiling"]],
         [f"kernel vs numpy, max rel. difference after {n_cmp} steps", res["kernel_vs_numpy_max_rel"]],
+        [f"ceiling vs kernel, max rel. difference after {n_cmp} steps", res["ceiling_vs_kernel_max_rel"]],
         [f"naive vs numpy, max rel. difference after {n_naive} steps", res["naive_vs_numpy_max_rel"]],
         [f"target {TARGET} steps/s met", str(res["target_met"])],
     ]))

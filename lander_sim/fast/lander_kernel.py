@@ -15,8 +15,12 @@ numpy path (:class:`lander_sim.physics.dynamics.LanderDynamics` + :class:`lander
   :func:`lander_sim.physics.rotation._guarded_sin` does, so gimbal lock gives the numpy path's
   finite-but-wrong numbers; ``params[P_PIVOT]``: a fixed pivot (``r``, ``v`` left alone).
 
-Everything is scalar code in one function, so numba compiles it to a loop with no
-allocation; without numba the same function runs as (slow) plain Python.
+Everything is scalar code, so numba compiles it to a loop with no allocation; without numba the
+same functions run as (slow) plain Python. A free quaternion lander (every packaged lander scene)
+takes :func:`_quaternion_step`: the same operations in the same order on local scalars, with what
+is fixed over a call (switches, parameters, wind, the thrusters' summed force, torque and fuel use
+at the call's throttles) read once into a tuple, so the state stays in registers through
+:func:`verlet_steps`' loop rather than going through arrays numba must assume may overlap.
 """
 from __future__ import annotations
 
@@ -189,8 +193,16 @@ def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est
     As :class:`lander_sim.integrators.verlet.VelocityVerlet`: quaternion ``q + q'(omega_half) dt``
     (eq 14) then renormalised if ``params[P_RENORM]``; Euler angles (``params[P_EULER]``)
     ``E + J omega dt + E'' dt^2 / 2`` (eq 5, 6) with the full-step rate, never renormalised;
-    with ``params[P_PIVOT]`` the position and velocity are not touched (a fixed pivot).
+    with ``params[P_PIVOT]`` the position and velocity are not touched (a fixed pivot). A free
+    quaternion lander takes the scalar path (:func:`_quaternion_step`: the same operations, the
+    scratch arrays unused).
     """
+    if params[P_EULER] == 0.0 and params[P_PIVOT] == 0.0:
+        out = _quaternion_step((y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13]),
+                               dt, _call_constants(params, force, torque, burn, throttles, wind))
+        for j in range(14):
+            y[j] = out[j]
+        return
     h = 0.5 * dt
     _accelerations(y, params, force, torque, throttles, wind, a0)
     fuel_rate = 0.0
@@ -267,6 +279,150 @@ def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est
 
 
 @njit(cache=True)
+def _call_constants(params, force, torque, burn, throttles, wind):  # pragma: no cover - compiled
+    """What stays fixed over one call of :func:`verlet_steps`, as one tuple of floats: the model's
+    parameters and switches, the wind, and the thrusters' summed force ``F_B``, torque ``Q_B`` and
+    fuel use ``sum_i t_i burn_i`` at the call's throttles (summed in :func:`_accelerations`' order,
+    so they are the values it forms at every evaluation)."""
+    fbx = fby = fbz = qx = qy = qz = fuel_use = 0.0
+    for i in range(throttles.shape[0]):
+        t = throttles[i]
+        fbx += t * force[i, 0]
+        fby += t * force[i, 1]
+        fbz += t * force[i, 2]
+        qx += t * torque[i, 0]
+        qy += t * torque[i, 1]
+        qz += t * torque[i, 2]
+    for i in range(throttles.shape[0]):
+        fuel_use += throttles[i] * burn[i]
+    p = params
+    return (p[P_GRAV], p[P_GM], p[P_UGRAV], p[P_G0], p[P_G0 + 1], p[P_G0 + 2], p[P_ATMO], p[P_RPLANET], p[P_EXO],
+            p[P_RHO0], p[P_H], p[P_DRAG], p[P_CD], p[P_AREA], wind[0], wind[1], wind[2], p[P_THRUST],
+            fbx, fby, fbz, qx, qy, qz, fuel_use, p[P_CFORCE], p[P_CF0], p[P_CF0 + 1], p[P_CF0 + 2],
+            p[P_CP0], p[P_CP0 + 1], p[P_CP0 + 2], p[P_DRY], p[P_FIXED_I], p[P_K1], p[P_K2], p[P_K3], p[P_RENORM])
+
+
+@njit(cache=True)
+def _accelerations_q(x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel, m):  # pragma: no cover - compiled
+    """:func:`_accelerations` of a free quaternion lander on scalars: ``(a_W, omega_dot_B)`` with the
+    constants ``m`` of :func:`_call_constants`; the same operations in the same order."""
+    mass = m[32] + fuel
+    r2 = x * x + yy * yy + z * z
+    fwx = 0.0
+    fwy = 0.0
+    fwz = 0.0
+    if m[0] != 0.0:
+        k = -m[1] * mass / (r2 * math.sqrt(r2))
+        fwx += k * x
+        fwy += k * yy
+        fwz += k * z
+    if m[2] != 0.0:
+        fwx += mass * m[3]
+        fwy += mass * m[4]
+        fwz += mass * m[5]
+    rho = 0.0
+    if m[6] != 0.0:
+        alt = math.sqrt(x * x + yy * yy + z * z) - m[7]
+        if alt <= m[8]:
+            rho = m[9] * math.exp(-alt / m[10])
+    if m[11] != 0.0 and rho != 0.0:
+        wx, wy, wz = m[14] - vx, m[15] - vy, m[16] - vz
+        kd = 0.5 * rho * m[12] * m[13] * math.sqrt(wx * wx + wy * wy + wz * wz)
+        fwx += kd * wx
+        fwy += kd * wy
+        fwz += kd * wz
+    fbx = fby = fbz = qx = qy = qz = 0.0
+    if m[17] != 0.0 and fuel > 0.0:
+        fbx, fby, fbz, qx, qy, qz = m[18], m[19], m[20], m[21], m[22], m[23]
+    r00 = s * s + a * a - b * b - c * c
+    r01 = 2.0 * (a * b + s * c)
+    r02 = 2.0 * (a * c - s * b)
+    r10 = 2.0 * (a * b - s * c)
+    r11 = s * s - a * a + b * b - c * c
+    r12 = 2.0 * (s * a + b * c)
+    r20 = 2.0 * (s * b + a * c)
+    r21 = 2.0 * (b * c - s * a)
+    r22 = s * s - a * a - b * b + c * c
+    if m[25] != 0.0:
+        cf0, cf1, cf2 = m[26], m[27], m[28]
+        fwx += cf0
+        fwy += cf1
+        fwz += cf2
+        g0 = r00 * cf0 + r01 * cf1 + r02 * cf2
+        g1 = r10 * cf0 + r11 * cf1 + r12 * cf2
+        g2 = r20 * cf0 + r21 * cf1 + r22 * cf2
+        p0, p1, p2 = m[29], m[30], m[31]
+        qx += p1 * g2 - p2 * g1
+        qy += p2 * g0 - p0 * g2
+        qz += p0 * g1 - p1 * g0
+    if m[33] != 0.0:
+        A, B, C = m[34], m[35], m[36]
+    else:
+        A, B, C = mass * m[34], mass * m[35], mass * m[36]
+    return ((fwx + (r00 * fbx + r10 * fby + r20 * fbz)) / mass, (fwy + (r01 * fbx + r11 * fby + r21 * fbz)) / mass,
+            (fwz + (r02 * fbx + r12 * fby + r22 * fbz)) / mass,
+            ((B - C) * w2 * w3 + qx) / A, ((C - A) * w3 * w1 + qy) / B, ((A - B) * w1 * w2 + qz) / C)
+
+
+@njit(cache=True)
+def _quaternion_step(state, dt, m):  # pragma: no cover - compiled
+    """One step of :func:`verlet_step` for a free quaternion lander on scalars: the 14 state values
+    after the step from ``state`` (the same operations in the same order), ``m`` of :func:`_call_constants`."""
+    x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel = state
+    h = 0.5 * dt
+    a0 = _accelerations_q(x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel, m)
+    fuel_rate = -m[24] if m[17] != 0.0 and fuel > 0.0 else 0.0
+    wh1 = w1 + h * a0[3]
+    wh2 = w2 + h * a0[4]
+    wh3 = w3 + h * a0[5]
+    # eq 14 with the half-step rate, then q + q' dt (as rotation.quat_dot * dt).
+    ds = 0.5 * (-a * wh1 - b * wh2 - c * wh3)
+    da = 0.5 * (s * wh1 + b * wh3 - c * wh2)
+    db = 0.5 * (s * wh2 + c * wh1 - a * wh3)
+    dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
+    s = s + ds * dt
+    a = a + da * dt
+    b = b + db * dt
+    c = c + dc * dt
+    if m[37] != 0.0:
+        nq = math.sqrt(s * s + a * a + b * b + c * c)
+        s, a, b, c = s / nq, a / nq, b / nq, c / nq
+    vh0 = vx + h * a0[0]
+    vh1 = vy + h * a0[1]
+    vh2 = vz + h * a0[2]
+    x = x + vh0 * dt
+    yy = yy + vh1 * dt
+    z = z + vh2 * dt
+    fuel += fuel_rate * dt
+    if fuel < 0.0:
+        fuel = 0.0
+    a1 = _accelerations_q(x, yy, z, vx + dt * a0[0], vy + dt * a0[1], vz + dt * a0[2], s, a, b, c,
+                          w1 + dt * a0[3], w2 + dt * a0[4], w3 + dt * a0[5], fuel, m)
+    return (x, yy, z, vh0 + h * a1[0], vh1 + h * a1[1], vh2 + h * a1[2], s, a, b, c,
+            wh1 + h * a1[3], wh2 + h * a1[4], wh3 + h * a1[5], fuel)
+
+
+@njit(cache=True)
+def _quaternion_steps(y, y_prev, n, dt, m, burning, stop2):  # pragma: no cover - compiled
+    """:func:`verlet_steps` of a free quaternion lander, the state held in local variables through the loop."""
+    state = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13])
+    prev = state
+    taken = n
+    for k in range(n):
+        prev = state
+        state = _quaternion_step(state, dt, m)
+        if (stop2 > 0.0 and state[0] * state[0] + state[1] * state[1] + state[2] * state[2] < stop2) or (
+                burning and state[13] <= 0.0):
+            taken = k + 1
+            break
+    for j in range(14):
+        y[j] = state[j]
+        if n > 0:  # y_prev as verlet_steps leaves it: untouched when no step is taken
+            y_prev[j] = prev[j]
+    return taken
+
+
+@njit(cache=True)
 def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind, stop_radius):  # pragma: no cover - compiled
     """Advance ``y`` (14,) in place by up to ``n`` velocity-Verlet steps of ``dt`` [s].
 
@@ -274,14 +430,17 @@ def verlet_steps(y, y_prev, n, dt, params, force, torque, burn, throttles, wind,
     or in which the tank runs dry under non-zero throttle, so the caller can handle that event;
     ``y_prev`` then holds the state before that last step. Returns the number of steps taken.
     """
-    a0 = np.empty(6)
-    a1 = np.empty(6)
-    est = np.empty(14)
     burning = False
     for i in range(throttles.shape[0]):
         if throttles[i] != 0.0:
             burning = True
     stop2 = stop_radius * stop_radius
+    if params[P_EULER] == 0.0 and params[P_PIVOT] == 0.0:
+        return _quaternion_steps(y, y_prev, n, dt, _call_constants(params, force, torque, burn, throttles, wind),
+                                 burning, stop2)
+    a0 = np.empty(6)
+    a1 = np.empty(6)
+    est = np.empty(14)
     for k in range(n):
         for j in range(14):
             y_prev[j] = y[j]

@@ -40,8 +40,8 @@ WIND = [3.0, 1.0, -2.0]
 CHUNK = 1000  # steps per call (10 s of hover), from the same start each call, as bench/speed.py
 
 
-@njit(cache=True)
-def _acc(x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel, gm, rp, rho0, scale_h, exo, cd, area, dry, k1, k2, k3,
+@njit(cache=True, error_model="numpy")
+def accelerations(x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel, gm, rp, rho0, scale_h, exo, cd, area, dry, k1, k2, k3,
          fbx0, fby0, fbz0, qx0, qy0, qz0, wind0, wind1, wind2):  # pragma: no cover - compiled
     """(a_W, omega_dot_B) of one state, in the kernel's operation order."""
     mass = dry + fuel
@@ -79,60 +79,65 @@ def _acc(x, yy, z, vx, vy, vz, s, a, b, c, w1, w2, w3, fuel, gm, rp, rho0, scale
     return (ax, ay, az, ((B - Cc) * w2 * w3 + qx) / A, ((Cc - A) * w3 * w1 + qy) / B, ((A - B) * w1 * w2 + qz) / Cc)
 
 
-@njit(cache=True)
-def ceiling_steps(y, y_prev, n, dt, c, stop_radius):  # pragma: no cover - compiled
-    """Up to ``n`` steps of ``y`` in place; ``c``: the constants of :func:`constants`. As ``verlet_steps``."""
+@njit(cache=True, error_model="numpy")
+def ceiling_step(st, dt, c):  # pragma: no cover - compiled
+    """One step from the 14 state values ``st``: the 14 after it. ``c``: the 22 constants of
+    :func:`constants` as a tuple."""
+    x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel = st
     gm, rp, rho0, scale_h, exo, cd, area, dry, k1, k2, k3 = c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10]
     fbx0, fby0, fbz0, qx0, qy0, qz0, burn0 = c[11], c[12], c[13], c[14], c[15], c[16], c[17]
-    wind0, wind1, wind2, burning = c[18], c[19], c[20], c[21] != 0.0
+    wind0, wind1, wind2 = c[18], c[19], c[20]
     h = 0.5 * dt
+    a0 = accelerations(x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel, gm, rp, rho0, scale_h, exo, cd, area, dry,
+                       k1, k2, k3, fbx0, fby0, fbz0, qx0, qy0, qz0, wind0, wind1, wind2)
+    fuel_rate = burn0 if fuel > 0.0 else 0.0
+    wh1 = w1 + h * a0[3]
+    wh2 = w2 + h * a0[4]
+    wh3 = w3 + h * a0[5]
+    ds = 0.5 * (-a * wh1 - b * wh2 - cq * wh3)
+    da = 0.5 * (s * wh1 + b * wh3 - cq * wh2)
+    db = 0.5 * (s * wh2 + cq * wh1 - a * wh3)
+    dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
+    s = s + ds * dt
+    a = a + da * dt
+    b = b + db * dt
+    cq = cq + dc * dt
+    nq = math.sqrt(s * s + a * a + b * b + cq * cq)
+    s, a, b, cq = s / nq, a / nq, b / nq, cq / nq
+    vh0 = vx + h * a0[0]
+    vh1 = vy + h * a0[1]
+    vh2 = vz + h * a0[2]
+    x = x + vh0 * dt
+    yy = yy + vh1 * dt
+    z = z + vh2 * dt
+    fuel += fuel_rate * dt
+    if fuel < 0.0:
+        fuel = 0.0
+    a1 = accelerations(x, yy, z, vx + dt * a0[0], vy + dt * a0[1], vz + dt * a0[2], s, a, b, cq,
+                       w1 + dt * a0[3], w2 + dt * a0[4], w3 + dt * a0[5], fuel, gm, rp, rho0, scale_h, exo, cd, area, dry,
+                       k1, k2, k3, fbx0, fby0, fbz0, qx0, qy0, qz0, wind0, wind1, wind2)
+    return (x, yy, z, vh0 + h * a1[0], vh1 + h * a1[1], vh2 + h * a1[2], s, a, b, cq,
+            wh1 + h * a1[3], wh2 + h * a1[4], wh3 + h * a1[5], fuel)
+
+
+@njit(cache=True, error_model="numpy")
+def ceiling_steps(y, y_prev, n, dt, c, stop_radius):  # pragma: no cover - compiled
+    """Up to ``n`` steps of ``y`` in place; ``c``: the constants of :func:`constants`. As ``verlet_steps``."""
+    ct = (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12], c[13], c[14], c[15], c[16],
+          c[17], c[18], c[19], c[20], c[21])
+    burning = c[21] != 0.0
     stop2 = stop_radius * stop_radius
-    x, yy, z, vx, vy, vz = y[0], y[1], y[2], y[3], y[4], y[5]
-    s, a, b, cq, w1, w2, w3, fuel = y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13]
-    p = (x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel)
+    st = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13])
+    p = st
     taken = n
     for k in range(n):
-        p = (x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel)
-        a0 = _acc(x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel, gm, rp, rho0, scale_h, exo, cd, area, dry,
-                  k1, k2, k3, fbx0, fby0, fbz0, qx0, qy0, qz0, wind0, wind1, wind2)
-        fuel_rate = burn0 if fuel > 0.0 else 0.0
-        wh1 = w1 + h * a0[3]
-        wh2 = w2 + h * a0[4]
-        wh3 = w3 + h * a0[5]
-        ds = 0.5 * (-a * wh1 - b * wh2 - cq * wh3)
-        da = 0.5 * (s * wh1 + b * wh3 - cq * wh2)
-        db = 0.5 * (s * wh2 + cq * wh1 - a * wh3)
-        dc = 0.5 * (s * wh3 + a * wh2 - b * wh1)
-        s = s + ds * dt
-        a = a + da * dt
-        b = b + db * dt
-        cq = cq + dc * dt
-        nq = math.sqrt(s * s + a * a + b * b + cq * cq)
-        s, a, b, cq = s / nq, a / nq, b / nq, cq / nq
-        vh0 = vx + h * a0[0]
-        vh1 = vy + h * a0[1]
-        vh2 = vz + h * a0[2]
-        x = x + vh0 * dt
-        yy = yy + vh1 * dt
-        z = z + vh2 * dt
-        fuel += fuel_rate * dt
-        if fuel < 0.0:
-            fuel = 0.0
-        a1 = _acc(x, yy, z, vx + dt * a0[0], vy + dt * a0[1], vz + dt * a0[2], s, a, b, cq,
-                  w1 + dt * a0[3], w2 + dt * a0[4], w3 + dt * a0[5], fuel, gm, rp, rho0, scale_h, exo, cd, area, dry,
-                  k1, k2, k3, fbx0, fby0, fbz0, qx0, qy0, qz0, wind0, wind1, wind2)
-        w1 = wh1 + h * a1[3]
-        w2 = wh2 + h * a1[4]
-        w3 = wh3 + h * a1[5]
-        vx = vh0 + h * a1[0]
-        vy = vh1 + h * a1[1]
-        vz = vh2 + h * a1[2]
-        if (stop2 > 0.0 and x * x + yy * yy + z * z < stop2) or (burning and fuel <= 0.0):
+        p = st
+        st = ceiling_step(st, dt, ct)
+        if (stop2 > 0.0 and st[0] * st[0] + st[1] * st[1] + st[2] * st[2] < stop2) or (burning and st[13] <= 0.0):
             taken = k + 1
             break
-    q = (x, yy, z, vx, vy, vz, s, a, b, cq, w1, w2, w3, fuel)
     for j in range(14):
-        y[j] = q[j]
+        y[j] = st[j]
         y_prev[j] = p[j]
     return taken
 

@@ -8,6 +8,9 @@
   one call after the set-up; ``trajectory_rel_diff`` is the largest difference of the two loops'
   states at the control instants, relative to each part's size (position, velocity, quaternion,
   body rate, fuel).
+* ``ceiling_loops_per_s``, ``loop_over_ceiling``: bench/ceiling_loop.py's fused loop of the same
+  flight (written only to be fast, bit for bit the same samples: ``ceiling_vs_loop_max_rel``) and
+  the compiled loop as a fraction of it, the two alternating in this run.
 * ``per_flight_flights_per_s`` and ``batched_flights_per_s``: ``sweeps/hover-robustness.yaml`` on
   the per-flight and the batched path (:func:`lander_tools.sweep.runner.run_local`, 2 workers),
   wall time of the run after start-up; ``summary_equal`` says whether the two summaries print alike.
@@ -30,6 +33,7 @@ import sys
 import time
 
 import _common as C
+import ceiling_loop
 import numpy as np
 
 from lander_autopilot.controllers import Demand, make_controller
@@ -141,6 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()[0]
     py_rate, py_states = python_loop(2 if args.quick else 5)
     c_rate, c_states = compiled_loop(50 if args.quick else 500, 3)
+    side = ceiling_loop.time_side_by_side(ceiling_loop.flight(), 50 if args.quick else 300, 3 if args.quick else 5)
     diffs = {name: float(np.max(np.abs(c_states[:, s] - py_states[:, s])) / np.max(np.abs(py_states[:, s])))
              for name, s in PARTS.items()}
     sweeps = sweep_rates(50 if args.quick else 200, 200 if args.quick else 1000, 2)
@@ -148,13 +153,18 @@ def main(argv: list[str] | None = None) -> int:
     data = {
         "scene": SCENE, "controller": LAW, "flight_s": DURATION, "load_average_1min": load,
         "python_loops_per_s": py_rate, "compiled_loops_per_s": c_rate, "loop_speedup": c_rate / py_rate,
-        "trajectory_rel_diff": diffs, **sweeps,
+        "trajectory_rel_diff": diffs, "ceiling_loops_per_s": side["ceiling_loops_per_s"],
+        "loop_over_ceiling": side["loop_over_ceiling"], "ceiling_vs_loop_max_rel": ceiling_loop.agreement(ceiling_loop.flight()),
+        **sweeps,
         "sweep_speedup": sweeps["batched_flights_per_s"] / sweeps["per_flight_flights_per_s"],
         **setup, "load_average_1min_end": os.getloadavg()[0],
     }
     print(C.table(f"Closed loop, one flight of {SCENE} with {LAW!r} ({DURATION:g} s at 10 Hz; load {load:.1f} on {os.cpu_count()} cores)",
                   ["loop", "loops/s", "us/loop"],
                   [["Python", py_rate, 1e6 / py_rate], ["compiled (1 thread)", c_rate, 1e6 / c_rate]]))
+    print(f"compiled loop / ceiling (bench/ceiling_loop.py: the same flight fused, written only to be fast; alternating, "
+          f"medians of {side['rounds']}): {data['loop_over_ceiling']:.2f} ({side['compiled_loops_per_s']:.3g} vs "
+          f"{data['ceiling_loops_per_s']:.3g} loops/s); ceiling vs loop, max rel. difference {data['ceiling_vs_loop_max_rel']:.3g}\n")
     print(C.table("Compiled vs Python trajectory: max |difference| / max |value| at the control instants",
                   ["part", "relative difference"], [[k, v] for k, v in diffs.items()]))
     print(C.table(f"sweeps/hover-robustness.yaml on {sweeps['sweep_workers']} local workers (wall time after start-up)",

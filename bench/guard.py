@@ -10,12 +10,13 @@ interpreter per tree, the two trees alternating (A B, then B A, ...), every inte
 tree's directory first on ``PYTHONPATH`` and the tree's packages imported from it before anything
 else (checked: every ``lander_*`` module's file must lie in that tree). Both trees are timed by the
 same probes, the functions of *this* tree's benchmarks (bench/speed.py, bench/ceiling.py,
-bench/closed_loop.py, bench/integrators.py), so only the product code differs. numba caches its
+bench/ceiling_loop.py, bench/closed_loop.py, bench/integrators.py), so only the product code differs. numba caches its
 machine code beside each source file, so the two trees never share cache entries; the first run of
 the exported tree compiles, outside the timed windows. The table gives, per figure, the median of
 each tree over the runs, the ratio of the medians A/B and the range of the run-by-run ratios.
-``ceiling`` is bench/ceiling.py's fused loop, the same code in both trees: its ratio shows what the
-machine's noise alone does to a ratio. A figure a tree cannot run (a revision without the batched
+``ceiling`` and ``loop_ceiling`` are the fused loops of bench/ceiling.py and bench/ceiling_loop.py,
+the same code in both trees: their ratios show what the machine's noise alone does to a ratio; the
+last rows are each tree's figure over its ceiling in the same run. A figure a tree cannot run (a revision without the batched
 sweep) is ``-``, with the reason below the table.
 
     python bench/guard.py --against REV [--runs N] [--figures a,b] [--quick] [--json FILE]
@@ -53,11 +54,12 @@ FIGURES = (
     Figure("kernel", "compiled Verlet kernel, hover (bench/speed.py)", "steps/s"),
     Figure("ceiling", "fused ceiling loop, hover (bench/ceiling.py; same code in A and B)", "steps/s"),
     Figure("closed_loop", "compiled closed loop, hover-canted + combined, 1 thread (bench/closed_loop.py)", "loops/s"),
+    Figure("loop_ceiling", "fused ceiling of that loop (bench/ceiling_loop.py; same code in A and B)", "loops/s"),
     Figure("batched", "batched sweep hover-robustness, 1 worker, per CPU second (bench/closed_loop.py)", "flights/s"),
     Figure("integrators", "compiled DOP853, one Kepler orbit at tol 1e-10 (bench/integrators.py)", "evals/s"),
 )
 #: Ratios of two figures of the same run of the same tree (noise of the machine largely cancels).
-DERIVED = (("kernel/ceiling", "kernel", "ceiling"),)
+DERIVED = (("kernel/ceiling", "kernel", "ceiling"), ("closed loop/its ceiling", "closed_loop", "loop_ceiling"))
 
 
 # --- the probes (run inside the interpreter of the tree under test) ------------------------------
@@ -77,9 +79,10 @@ def _kernel_and_ceiling(quick: bool) -> dict[str, float]:
 
 
 def _closed_loop(quick: bool) -> dict[str, float]:
-    import closed_loop
+    import ceiling_loop
 
-    return {"closed_loop": closed_loop.compiled_loop(100 if quick else 400, 3)[0]}
+    r = ceiling_loop.time_side_by_side(ceiling_loop.flight(), 60 if quick else 300, 3)
+    return {"closed_loop": r["compiled_loops_per_s"], "loop_ceiling": r["ceiling_loops_per_s"]}
 
 
 def _batched(quick: bool) -> dict[str, float]:
@@ -95,7 +98,7 @@ def _integrators(quick: bool) -> dict[str, float]:
 
 
 PROBES: dict[str, Callable[[bool], dict[str, float]]] = {
-    "kernel": _kernel_and_ceiling, "ceiling": _kernel_and_ceiling, "closed_loop": _closed_loop,
+    "kernel": _kernel_and_ceiling, "ceiling": _kernel_and_ceiling, "closed_loop": _closed_loop, "loop_ceiling": _closed_loop,
     "batched": _batched, "integrators": _integrators,
 }
 

@@ -90,9 +90,9 @@ class Replayed:
 
 
 #: Design constants: set once as a law is built (designed gains, the braking's margins, the MPC's
-#: settings), never learnt in flight, so taken from the current code on replay. A snapshot made
-#: before stop 41 carries brake_fraction 0.95 and an MPC's before stop 40 target_above 1.0: kept,
-#: its replay measured the old margins under the new code's name.
+#: settings), never learnt in flight, so taken from the current code on replay: a snapshot pickles
+#: the margins of the code that made it, and kept they would be replayed under the current code's
+#: names, measuring another law than the one in the tree.
 _DESIGN = ("K", "k_i", "k_p", "brake_fraction", "stop_above", "target_above", "settings")
 
 

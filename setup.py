@@ -33,6 +33,9 @@ setup(
         (f"share/{PACKAGE}/flights", glob("flights/*.yaml")),
         (f"share/{PACKAGE}/sweeps", glob("sweeps/*.yaml")),
     ],
+    # colcon test runs pytest when the package declares it a test dependency (its "test" extra);
+    # pytest-xdist lets `./dev test` run the files in parallel (the suite also runs without it).
+    extras_require={"test": ["pytest", "pytest-xdist"]},
     zip_safe=False,
     python_requires=">=3.11",
     entry_points={

@@ -18,7 +18,7 @@
   each flight included), the figure that does not depend on what else the machine is doing.
 * ``setup_ms_per_flight`` and ``reference_setup_ms_per_flight``: CPU milliseconds to set one
   flight up for the batched core, the fast way (values derived from the nominal scene's
-  Simulation, :class:`lander_tools.sweep.batched._Template`) and by building the flight's scene and
+  Simulation, :class:`lander_tools.sweep.batched.SetupTemplate`) and by building the flight's scene and
   Simulation; ``load_average_1min_end``: the load when the run ended.
 
 Timings are noisy on a shared machine: compare the ratios within one run and say the load.
@@ -79,7 +79,7 @@ def compiled_loop(copies: int, repeats: int) -> tuple[float, np.ndarray]:
     sim = Simulation(scene)
     states = batched.fly_compiled(sim, law, Demand().altitude, DURATION, record_states=True)["states"][0]
     n = states.shape[0] - 1
-    inputs = batched._pack([batched._Flight(-1, batched.FlightCase(-1, 0), sim, (500.0, 500.0, 0.0))] * copies, n)
+    inputs = batched.pack_flights([batched.FlightSetup(-1, batched.FlightCase(-1, 0), sim, (500.0, 500.0, 0.0))] * copies, n)
     params, K = law.pack()
     best = float("inf")
     for _ in range(repeats):
@@ -128,10 +128,10 @@ def batched_cpu_rate(flights: int) -> float:
 def setup_cost(flights: int) -> dict[str, float]:
     """CPU ms per flight of the batched core's set-up: fast, and building scene + Simulation."""
     spec = load_spec(C.ROOT / "sweeps" / "hover-robustness.yaml")
-    tpl = batched._template(spec)
+    tpl = batched.template_of(spec)
     out = {}
-    for name, make in (("setup_ms_per_flight", lambda i: batched._fast_setup(spec, i, tpl)),
-                       ("reference_setup_ms_per_flight", lambda i: batched._setup(spec, i, 4))):
+    for name, make in (("setup_ms_per_flight", lambda i: batched.setup_flight_fast(spec, i, tpl)),
+                       ("reference_setup_ms_per_flight", lambda i: batched.setup_flight(spec, i, 4))):
         make(0)
         t0 = time.process_time()
         for i in range(flights):

@@ -10,7 +10,8 @@ phase, well above any braking; ``replay`` loads them and flies the rest with the
 Each flight ends at the first instant within the hover band at rest after the powered descent
 began (the sweep's ``fuel_ratio`` endpoint), or with ``--hold`` once the hover is held (the
 sweep's success: 30 s within the band at rest). A change to the hover law needs ``--hold``: one
-that improved every ``fuel_ratio`` made 13 of 200 flights fall from the hover later (docs/deorbit.md).
+that improved every ``fuel_ratio`` made 13 of 200 flights fall from the hover later
+(:class:`lander_autopilot.controllers.deorbit.hover.HoverCapture`).
 
 A replay is the sweep's flight, bit for bit, as long as nothing that runs before the snapshot has
 changed (the entry, the chute, what the laws learn under it): ``--check K`` re-flies the first K
@@ -90,9 +91,9 @@ class Replayed:
 
 
 #: Design constants: set once as a law is built (designed gains, the braking's margins, the MPC's
-#: settings), never learnt in flight, so taken from the current code on replay. A snapshot made
-#: before stop 41 carries brake_fraction 0.95 and an MPC's before stop 40 target_above 1.0: kept,
-#: its replay measured the old margins under the new code's name.
+#: settings), never learnt in flight, so taken from the current code on replay: a snapshot pickles
+#: the margins of the code that made it, and kept they would be replayed under the current code's
+#: names, measuring another law than the one in the tree.
 _DESIGN = ("K", "k_i", "k_p", "brake_fraction", "stop_above", "target_above", "settings")
 
 

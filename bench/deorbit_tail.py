@@ -10,7 +10,8 @@ optimum, then the time and fuel to the first instant within the band at rest (th
 ``fuel_ratio``). The optimum is the sweep's (``powered_optimum`` in its ``flights.csv``, solved from
 the same handover state): valid while the phases before the powered descent are unchanged.
 
-docs/deorbit.md ("The tail, second pass") has the figures and what they showed.
+What it shows is what sets the margins of docs/deorbit.md ("Why the numbers"): where a flight
+stopped the fall against the band, and how long the hover law took from there to the band at rest.
 
     ./dev exec python bench/deorbit_tail.py sweeps/deorbit-200km.yaml out/sweep/deorbit-200km/flights.csv
     ./dev exec python bench/deorbit_tail.py sweeps/deorbit-200km.yaml out/sweep/deorbit-200km/flights.csv \

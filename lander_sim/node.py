@@ -35,11 +35,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
 from lander_interfaces.msg import FlightEvent, LanderState, ThrottleCommand
-from lander_interfaces.srv import LoadScene, Reset, RunUntil, StepSimulation
 from lander_ros.delivery import (
     FLUSH_TIMEOUT,
     OUTPUT_QOS,
@@ -49,9 +47,7 @@ from lander_ros.delivery import (
 )
 from lander_ros.flight_span import (
     COUNTED_TOPICS,
-    FLIGHT_SUFFIX,
     FlightEnd,
-    format_matched,
     parse_end_on,
 )
 from lander_ros.params import check_overrides
@@ -63,14 +59,15 @@ from lander_sim.ros.config import (
     SCENE_SEED,
     SPECS,
     ConfigError,
+    check_change,
     check_parameter,
 )
 from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
-from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOutcome
+from lander_sim.ros.gate import Gate, GateSettings, Mode, Publish, TickOutcome
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
+from lander_sim.ros.services import SimServices
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
-from lander_sim.scenes import SceneError
 
 try:  # TF only on a full ROS 2 install (tf2_ros is not on PyPI).
     from tf2_ros import TransformBroadcaster
@@ -131,7 +128,7 @@ class SimNode(Node):
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)
         self._timeouts_at_reset = 0  # health.lockstep_timeouts at the flight's reset (FLIGHT_ENDED counts this flight's)
 
-        self.sim: SimAdapter = self._load(self._param("scene"))
+        self.sim: SimAdapter = self.load(self._param("scene"))
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer = Pacer(self._param("speed"), self._k * self.sim.dt)
 
@@ -143,6 +140,8 @@ class SimNode(Node):
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", QoSProfile(depth=1000))
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
+        self._outputs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
+                         self._pub_events, self._pub_diag)
 
         c = self._counted
         self._inputs = (
@@ -150,15 +149,9 @@ class SimNode(Node):
             self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS),
         )
 
-        self.create_service(LoadScene, "/lander/load_scene", c(self._srv_load_scene))
-        self.create_service(Reset, "/lander/reset", c(self._srv_reset))
-        self.create_service(Trigger, "/lander/pause", c(self._srv_pause))
-        self.create_service(Trigger, "/lander/resume", c(self._srv_resume))
-        self.create_service(StepSimulation, "/lander/step", c(self._srv_step))
-        self.create_service(RunUntil, "/lander/run_until", c(self._srv_run_until))
-        self.create_service(Trigger, "/lander/deploy_parachute", c(self._srv_deploy_parachute))
-        self.create_service(SetBool, "/lander/set_stabiliser", c(self._srv_set_stabiliser))
-        self.create_service(Trigger, "/lander/subscribers", c(self._srv_subscribers))
+        self.service_handlers = SimServices(self)
+        for srv_type, name, handler in self.service_handlers.table():
+            self.create_service(srv_type, name, c(handler))
 
         # Messages kept and refilled every tick: no per-tick construction of message objects.
         self._clock_msg = Clock()
@@ -211,8 +204,7 @@ class SimNode(Node):
 
     def flush(self, timeout: float = FLUSH_TIMEOUT) -> bool:
         """Wait until the subscribers acknowledged every output published (before the process exits)."""
-        return flush((self._pub_state, self._pub_clock, self._pub_events, self._pub_diag, self._pub_odom,
-                      self._pub_pose, self._pub_markers), timeout)
+        return flush(self._outputs, timeout)
 
     def _serve(self, executor, wait: float) -> None:
         """One executor pass (blocking up to ``wait`` s), then drain whatever else is pending.
@@ -248,7 +240,7 @@ class SimNode(Node):
                 and (mode is not Mode.NOT_STARTED or self._param("idle_diagnostics"))):
             self._publish_diagnostics(now)
         if now >= self._next_sub_check:
-            self._check_subscribers(now)
+            self.check_subscribers(now)
         poll = self.gate.poll(now, self.sim.t)
         if poll.timed_out:
             self.health.lockstep_timeouts += 1
@@ -289,8 +281,8 @@ class SimNode(Node):
             convert.fill_stamp(self._clock_msg.clock, self.sim.t)
             self._pub_clock.publish(self._clock_msg)
             self._counts["/clock"] += 1
-            self._publish_core_events()
-            # Debug only: a launcher pauses here at every timeline action (issue 17, log noise).
+            self.publish_core_events()
+            # Debug only: a launcher pauses here at every timeline action, so at info level it would flood the log.
             self.get_logger().debug(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
             return
         self._publish_outputs()
@@ -307,7 +299,7 @@ class SimNode(Node):
         self._publish_event(FlightEvent.FLIGHT_ENDED, end.detail(), end.values())
         self.get_logger().debug(end.detail())
 
-    def _advance(self, n_steps: int, stop_on_touchdown: bool = False) -> None:
+    def advance(self, n_steps: int, stop_on_touchdown: bool = False) -> None:
         """Advance ``n_steps`` physics steps now (services), publishing at every tick boundary."""
         while n_steps > 0:
             k = min(self._k, n_steps)
@@ -370,14 +362,14 @@ class SimNode(Node):
             self._last_marker_wall = now
             self._pub_markers.publish(self._markers.build(snap, self.sim.vehicle))
             counts["/lander/markers"] += 1
-        self._publish_core_events()
+        self.publish_core_events()
 
-    def _publish(self, what: Publish) -> None:
+    def publish_pending(self, what: Publish) -> None:
         """Publish what the gate answered: the current instant's state when it is not out yet."""
         if what is not Publish.NOTHING:
             self._publish_outputs(clock=what is Publish.STATE_AND_CLOCK)
 
-    def _check_subscribers(self, now: float) -> None:
+    def check_subscribers(self, now: float) -> None:
         """Re-read who listens to the optional outputs (a graph query per tick would cost ~7 us)."""
         self._next_sub_check = now + _SUBSCRIBER_CHECK_PERIOD
         self._state_subscribers = self._pub_state.get_subscription_count()
@@ -385,7 +377,7 @@ class SimNode(Node):
         self._want_pose = self._pub_pose.get_subscription_count() > 0
         self._want_markers = self._pub_markers.get_subscription_count() > 0
 
-    def _publish_core_events(self) -> None:
+    def publish_core_events(self) -> None:
         for event in self.sim.drain_events():
             name, detail, values = convert.event_fields(event)
             self._publish_event(getattr(FlightEvent, name), detail, values, t=event.t)
@@ -401,33 +393,28 @@ class SimNode(Node):
     def _publish_diagnostics(self, now: float) -> None:
         self._next_diag_wall = now + 1.0 / self._param("diagnostics_rate")
         self.health.update_rtf(self.sim.t, now)
+        extra = self.sim.health_values() | {
+            "sim_time": repr(self.sim.t),
+            "paused": str(self.gate.mode.paused),
+            "steps_per_tick": str(self._k),
+            "flight": str(self._flight),
+            "pacer_overruns": str(self.pacer.overruns),
+            # Matched by this node's writer (not just seen in the graph): a start-up handshake
+            # can wait for it, so the first state reaches everyone (test/reliability).
+            "state_subscribers": str(self._state_subscribers),
+        }
         arr = DiagnosticArray()
         convert.fill_stamp(arr.header.stamp, self.sim.t)
         status = DiagnosticStatus()
-        to_diagnostic_status(
-            status,
-            self.health,
-            name=f"{NODE_NAME}: simulation",
-            hardware_id=self.sim.scene.name,
-            extra=self.sim.health_values()
-            | {
-                "sim_time": repr(self.sim.t),
-                "paused": str(self.gate.mode.paused),
-                "steps_per_tick": str(self._k),
-                "flight": str(self._flight),
-                "pacer_overruns": str(self.pacer.overruns),
-                # Matched by this node's writer (not just seen in the graph): a start-up handshake
-                # can wait for it, so the first state reaches everyone (test/reliability).
-                "state_subscribers": str(self._state_subscribers),
-            },
-        )
+        to_diagnostic_status(status, self.health, name=f"{NODE_NAME}: simulation", hardware_id=self.sim.scene.name,
+                             extra=extra)
         arr.status = [status]
         self._pub_diag.publish(arr)
         self._counts["/diagnostics"] += 1
 
     # --- inputs ------------------------------------------------------------------------------
 
-    def _reject(self, kind: str, detail: str) -> None:
+    def reject(self, kind: str, detail: str) -> None:
         """Count, log (throttled) and announce one rejected input; the simulation is untouched."""
         count = self.health.reject(kind)
         self.get_logger().warning(f"rejected {kind} (#{count}): {detail}", throttle_duration_sec=1.0)
@@ -438,7 +425,7 @@ class SimNode(Node):
         try:
             self.sim.set_throttles(values)
         except InputError as exc:
-            self._reject("throttle." + convert.throttle_fault(values, self.sim.vehicle.n_thrusters), str(exc))
+            self.reject("throttle." + convert.throttle_fault(values, self.sim.vehicle.n_thrusters), str(exc))
             return
         self.health.commands_accepted += 1
         self._cmd_t, self._stale = self.sim.t, False
@@ -449,120 +436,31 @@ class SimNode(Node):
     def _on_wind(self, msg: Vector3Stamped) -> None:
         frame = msg.header.frame_id
         if frame not in ("", self._world_frame):
-            self._reject("wind.frame", f"header.frame_id {frame!r}: wind must be given in {self._param('world_frame')!r}")
+            self.reject("wind.frame", f"header.frame_id {frame!r}: wind must be given in {self._param('world_frame')!r}")
             return
         try:
             self.sim.set_wind(convert.vector3_to_array(msg.vector))
         except InputError as exc:
-            self._reject("wind.non_finite", str(exc))
+            self.reject("wind.non_finite", str(exc))
 
-    # --- services ----------------------------------------------------------------------------
+    # --- what the services read ---------------------------------------------------------------
 
-    def _srv_fail(self, name: str, response, message: str):
-        self._reject(f"service.{name}", message)
-        response.success, response.message = False, message
-        return response
+    @property
+    def flight(self) -> int:
+        """The flight's number: 0 the node's first, one more at each reset or scene load."""
+        return self._flight
 
-    def _srv_load_scene(self, request: LoadScene.Request, response: LoadScene.Response):
-        try:
-            sim = self._load(request.scene)
-        except (SceneError, ValueError) as exc:
-            return self._srv_fail("load_scene", response, str(exc))
-        self.sim = sim
-        self._after_reset()
-        response.success, response.message = True, f"loaded scene {sim.scene.name!r} (dt {sim.dt} s)"
-        return response
+    @property
+    def steps_per_tick(self) -> int:
+        """Physics steps in one control tick (``publish_rate`` of sim time)."""
+        return self._k
 
-    def _srv_reset(self, request: Reset.Request, response: Reset.Response):
-        seed = int(request.seed) if request.use_seed else None
-        try:
-            self.sim.reset(seed)
-        except ValueError as exc:
-            return self._srv_fail("reset", response, str(exc))
-        self._apply_stabiliser(self.sim)  # the core's reset restores the scene's setting
-        self._after_reset()
-        response.success = True
-        response.message = "reset to t = 0" + (f" with seed {seed}" if seed is not None else "")
-        return response
-
-    def _srv_pause(self, request: Trigger.Request, response: Trigger.Response):
-        # Nothing is published: the last state (at every tick boundary) already is the pause instant.
-        # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
-        was = "paused" if self.gate.pause().paused else "running"
-        if was == "running":
-            self.pacer.stop(self.sim.t + self._k * self.sim.dt)  # behind when it stopped: counted
-        response.success, response.message = True, f"paused at t = {self.sim.t!r} s (was {was}){FLIGHT_SUFFIX}{self._flight}"
-        return response
-
-    def _srv_resume(self, request: Trigger.Request, response: Trigger.Response):
-        refusal = self.gate.refusal(Event.RESUME)
-        if refusal is not None:
-            return self._srv_fail("resume", response, refusal.message(self.sim.t))
-        # Started paused: state 1, the controller's first question; held at pause_at: that instant's
-        # state, now that inputs are in; awaiting an answer: the lockstep wait counts from here.
-        pending = self.gate.resume(time.monotonic())
-        self._check_subscribers(time.monotonic())  # who listens now gets this instant's odometry, pose, markers
-        self.pacer.restart()
-        self._publish(pending)
-        response.success, response.message = True, f"resumed at t = {self.sim.t!r} s"
-        return response
-
-    def _srv_subscribers(self, request: Trigger.Request, response: Trigger.Response):
+    def matched(self) -> dict[str, int]:
         """Subscriptions matched by each output's writer, and publishers matched by each input's
         reader as ``sub:TOPIC`` (lander_ros.flight_span.format_matched)."""
-        pubs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
-                self._pub_events, self._pub_diag)
-        matched = {p.topic_name: p.get_subscription_count() for p in pubs}
+        matched = {p.topic_name: p.get_subscription_count() for p in self._outputs}
         matched.update({f"sub:{s.topic_name}": s.get_publisher_count() for s in self._inputs})
-        response.success = True
-        response.message = format_matched(matched)
-        return response
-
-    def _srv_step(self, request: StepSimulation.Request, response: StepSimulation.Response):
-        refusal = self.gate.refusal(Event.STEP)
-        if refusal is not None:
-            response.sim_time = self.sim.t
-            return self._srv_fail("step", response, refusal.message(self.sim.t))
-        if request.steps == 0:
-            response.sim_time = self.sim.t
-            return self._srv_fail("step", response, "steps = 0: ask for at least one physics step")
-        self._publish(self.gate.advance())  # a pending state is the step's start
-        self._advance(int(request.steps))
-        response.success, response.sim_time = True, self.sim.t
-        response.message = f"advanced {request.steps} steps of {self.sim.dt} s"
-        return response
-
-    def _srv_run_until(self, request: RunUntil.Request, response: RunUntil.Response):
-        target = request.sim_time
-        response.sim_time_reached = self.sim.t
-        refusal = self.gate.refusal(Event.RUN_UNTIL)
-        if refusal is not None:
-            return self._srv_fail("run_until", response, refusal.message(self.sim.t))
-        if not math.isfinite(target) or target <= self.sim.t:
-            return self._srv_fail(
-                "run_until", response, f"sim_time = {target!r} must be finite and later than now ({self.sim.t!r} s)"
-            )
-        # Whole steps, the last one reaching or passing the target (the 1e-9 absorbs float rounding of t/dt).
-        n = max(1, math.ceil((target - self.sim.t) / self.sim.dt - 1e-9))
-        self._publish(self.gate.advance())  # a pending state is the start
-        self._advance(n, stop_on_touchdown=True)
-        response.success, response.sim_time_reached = True, self.sim.t
-        response.message = f"reached t = {self.sim.t!r} s, phase {self.sim.phase_name}"
-        return response
-
-    def _srv_deploy_parachute(self, request: Trigger.Request, response: Trigger.Response):
-        try:
-            self.sim.deploy_parachute()
-        except InputError as exc:
-            return self._srv_fail("deploy_parachute", response, str(exc))
-        response.success, response.message = True, "parachute deploy requested"
-        self._publish_core_events()
-        return response
-
-    def _srv_set_stabiliser(self, request: SetBool.Request, response: SetBool.Response):
-        self.sim.set_stabiliser(bool(request.data))
-        response.success, response.message = True, f"stabiliser {'on' if request.data else 'off'}"
-        return response
+        return matched
 
     # --- parameters and scene ----------------------------------------------------------------
 
@@ -612,16 +510,12 @@ class SimNode(Node):
         for a name the node does not have: the kinds in the diagnostics stay a bounded set)."""
         self._callbacks += 1
         name = params[0].name if params else ""
-        self._reject(f"parameter.{name if self.has_parameter(name) else 'undeclared'}", reason)
+        self.reject(f"parameter.{name if self.has_parameter(name) else 'undeclared'}", reason)
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         self._callbacks += 1
         for p in params:
-            if p.name == "use_sim_time":
-                if p.value:
-                    return SetParametersResult(successful=False, reason="the simulator is the clock: use_sim_time must stay false")
-                continue
-            reason = check_parameter(p.name, p.value)
+            reason = check_change(p.name, p.value)
             if reason is not None:
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
@@ -636,7 +530,7 @@ class SimNode(Node):
         if "speed" in names:
             self.pacer.set_speed(self._param("speed"))
         if "stabiliser" in names:
-            self._apply_stabiliser(self.sim)
+            self.apply_stabiliser(self.sim)
         if names & {"world_frame", "body_frame"}:
             self._apply_frames()
             self._markers.frame_id = self._param("world_frame")
@@ -650,12 +544,12 @@ class SimNode(Node):
         self._tf_msg.header.frame_id = world
         self._tf_msg.child_frame_id = body
 
-    def _apply_stabiliser(self, sim: SimAdapter) -> None:
+    def apply_stabiliser(self, sim: SimAdapter) -> None:
         choice = self._param("stabiliser")
         if choice != "scene":
             sim.set_stabiliser(choice == "on")
 
-    def _load(self, name: str) -> SimAdapter:
+    def load(self, name: str) -> SimAdapter:
         """Build the simulation of scene ``name`` with this node's overrides (integrator, dt, threshold, seed)."""
         sim = build_simulation(
             name,
@@ -664,10 +558,10 @@ class SimNode(Node):
             gimbal_threshold=self._param("gimbal_threshold") or None,
             seed=None if self._param("seed") == SCENE_SEED else self._param("seed"),
         )
-        self._apply_stabiliser(sim)
+        self.apply_stabiliser(sim)
         return sim
 
-    def _after_reset(self) -> None:
+    def start_flight(self) -> None:
         """Node-side state that follows a reset or a new scene: sequence, held command, trajectory.
 
         The sequence restarts: the reset instant is published as state 1 (a new epoch; a
@@ -678,14 +572,14 @@ class SimNode(Node):
         pending = self.gate.reset()  # running stays running; paused, held or ended: paused
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
         self._timeouts_at_reset = self.health.lockstep_timeouts
-        self._check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
+        self.check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()
         self._cmd_t, self._stale = None, False
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer.set_period(self._k * self.sim.dt)
         self._markers.clear_trajectory()
         self.health.restart_window(self.sim.t)
-        self._publish(pending)
+        self.publish_pending(pending)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,6 +39,7 @@ SUMMARIES: dict[str, str] = {
     "switch": "switch the running flight's controller (optionally with a parameters file)",
     "pause": "pause the running flight",
     "resume": "resume the running flight",
+    "start": "start a paused flight once its autopilot is matched both ways (--until-end: wait for its end)",
     "step": "advance the paused flight by N physics steps",
     "reset": "reset the running flight to its scene's start (t = 0)",
     "topics": "list the running flight's topics and their types",

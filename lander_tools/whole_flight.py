@@ -73,6 +73,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(exit 3 if a message is missing); docs/flying.md")
     parser.add_argument("--duration", type=float, metavar="S",
                         help="with --whole-flight: end the flight at this sim time [s] (sets the sim's end_time)")
+    parser.add_argument("--start", action="store_true",
+                        help="with --whole-flight: resume the flight after its reset even if it was paused "
+                             "(a simulator started paused waits for everyone to be matched: the launch file)")
     parser.add_argument("--wait", type=float, default=10.0, metavar="S",
                         help="with --whole-flight: wall seconds to wait for the flight's simulator (default 10)")
 
@@ -177,9 +180,10 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             reset = link.sim_service("reset")
             if not reset.ok:
                 raise _Refused(f"the simulator refused the reset: {reset.message}")
-            if was_running:
+            running = was_running or args.start
+            if running:
                 link.sim_service("resume")
-            _say(f"recording {config.output} from the flight's reset (t = 0, {'running' if was_running else 'paused'}); "
+            _say(f"recording {config.output} from the flight's reset (t = 0, {'running' if running else 'paused'}); "
                  f"{ends_at}")
             if on_started is not None:
                 on_started()

@@ -55,6 +55,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "xdist_group(name): the pytest-xdist worker group of a test")
 
 
+@pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: without it (a plain `colcon test`) one process runs all
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     """``-n auto``: one worker per core, at most 4 (each flight test runs several processes itself)."""
     return max(1, min(4, os.cpu_count() or 1))

@@ -30,9 +30,9 @@ def poles_param(name: str, value: object, n: int) -> np.ndarray:
     except (TypeError, ValueError):
         raise ControllerError(f"{name}: expected {n} poles (numbers), got {value!r}") from None
     if p.size != n:
-        raise ControllerError(f"{name}: expected {n} poles, got {p.size}: {p.tolist()}")
+        raise ControllerError(f"{name}: expected {n} poles, got {p.size}: {value!r}")
     if not np.all(np.isfinite(p)) or np.any(p.real >= 0.0):
-        raise ControllerError(f"{name}: poles must be finite with negative real part, got {p.tolist()}")
+        raise ControllerError(f"{name}: expected {n} poles, finite with negative real part, got {value!r}")
     return p
 
 

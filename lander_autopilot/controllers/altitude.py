@@ -5,7 +5,7 @@ All use one throttle on every thruster. Altitude ``h = |r_W| - R_mars`` and clim
 """
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, TypedDict, Unpack
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from lander_sim.physics.vehicle import Vehicle
 from ..design.altitude import vertical_thrust
 from ._params import matrix_param, poles_param, positive_param
 from .base import Controller, ControllerError, Demand, altitude_and_climb_rate
+from .params import DESIGN_FUEL, Param, ParamTable, boolean, finite, matrix, optional, poles
 
 
 def _check_can_hover(vehicle: Vehicle) -> float:
@@ -24,6 +25,42 @@ def _check_can_hover(vehicle: Vehicle) -> float:
     if tv <= 0.0:
         raise ControllerError(f"vehicle has no upward thrust (T_v = {tv} N): an altitude law cannot work")
     return tv
+
+
+class BaselineParams(TypedDict, total=False):
+    """Keyword parameters of :class:`BaselineController` (its table: :attr:`BaselineController.PARAMS`)."""
+
+    kp: float
+    kd: float
+
+
+class AltitudeParams(TypedDict, total=False):
+    """Keyword parameters of :class:`AltitudeController` (its table: :data:`ALTITUDE_ROWS`)."""
+
+    poles: object
+    K: object | None
+    design_fuel: float | None
+    p_only: bool | None
+
+
+class IntegralAltitudeParams(TypedDict, total=False):
+    """Keyword parameters of :class:`IntegralAltitudeController` (its table: its ``PARAMS``)."""
+
+    poles: object
+    K: object | None
+    design_fuel: float | None
+
+
+#: The altitude law's parameters (eq 18-19); ``altitude-p`` is the same law with ``p_only`` true.
+ALTITUDE_ROWS: tuple[Param, ...] = (
+    Param("poles", (-0.9, -1.1), "1/s", "2 poles, Re < 0", "closed-loop poles of [h - h_e, h'] (eq 19), placed at the design fuel",
+          poles(2)),
+    Param("K", None, "1/m, s/m", "none or 1 x 2", "given gain, used verbatim instead of placing the poles",
+          optional(matrix((1, 2)))),
+    DESIGN_FUEL,
+    Param("p_only", False, "-", "true, false", "k2 = 0: no climb-rate feedback, the marginal P-only law of eq 21",
+          optional(boolean)),
+)
 
 
 class BaselineController(Controller):
@@ -34,11 +71,16 @@ class BaselineController(Controller):
     """
 
     name: ClassVar[str] = "baseline"
+    PARAMS: ClassVar[ParamTable] = ParamTable((
+        Param("kp", 0.1, "1/m", "finite", "throttle per metre of altitude error", finite),
+        Param("kd", 0.0, "s/m", "finite", "throttle per m/s of climb rate (0: P-only, eq 21)", finite),
+    ))
 
-    def __init__(self, vehicle: Vehicle, *, kp: float = 0.1, kd: float = 0.0) -> None:
+    def __init__(self, vehicle: Vehicle, **params: Unpack[BaselineParams]) -> None:
         super().__init__(vehicle)
-        self.kp = float(matrix_param("kp", kp, ()))
-        self.kd = float(matrix_param("kd", kd, ()))
+        p = self.PARAMS.resolve(params, self.name)
+        self.kp = float(p["kp"])  # type: ignore[arg-type]  # each checked by its row: a float
+        self.kd = float(p["kd"])  # type: ignore[arg-type]
         self._tmax = sum(t.max_thrust for t in vehicle.thrusters if t.enabled)
         if self._tmax <= 0.0:
             raise ControllerError("vehicle has no enabled thruster: the baseline autopilot cannot work")
@@ -61,20 +103,13 @@ class AltitudeController(Controller):
     """
 
     name: ClassVar[str] = "altitude"
-    #: ``k2 = 0`` unless the ``p_only`` parameter says otherwise.
-    p_only_default: ClassVar[bool] = False
+    PARAMS: ClassVar[ParamTable] = ParamTable(ALTITUDE_ROWS)
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        poles: object = (-0.9, -1.1),
-        K: object | None = None,
-        design_fuel: float | None = None,
-        p_only: bool | None = None,
-    ) -> None:
+    def __init__(self, vehicle: Vehicle, **params: Unpack[AltitudeParams]) -> None:
         super().__init__(vehicle)
+        p = self.PARAMS.resolve(params, self.name)
         self.T_v = _check_can_hover(vehicle)
+        design_fuel, K = p["design_fuel"], p["K"]
         fuel = vehicle.fuel_capacity if design_fuel is None else positive_param("design_fuel", design_fuel)
         self.design_mass = vehicle.mass(fuel)
         if K is None:
@@ -82,9 +117,10 @@ class AltitudeController(Controller):
             from ..design.gains import place_poles
 
             model = altitude_model(vehicle, fuel, 0.0)
-            K = place_poles(model.A, model.B, poles_param("poles", poles, 2)).K
+            K = place_poles(model.A, model.B, poles_param("poles", p["poles"], 2)).K
         self.K = matrix_param("K", K, (1, 2)).copy()
-        if self.p_only_default if p_only is None else p_only:
+        p_only = p["p_only"]
+        if self.PARAMS["p_only"].default if p_only is None else p_only:
             self.K[0, 1] = 0.0
         # Feedback as accelerations [1/s^2, 1/s]: B K of eq 19, independent of the mass.
         self._kz = float(self.K[0, 0]) * self.T_v / self.design_mass
@@ -115,7 +151,8 @@ class AltitudePController(AltitudeController):
     """P-only variant (``k2 = 0``) of :class:`AltitudeController`: poles at ``+-j sqrt(T_v k1 / m)`` (eq 21)."""
 
     name: ClassVar[str] = "altitude-p"
-    p_only_default: ClassVar[bool] = True
+    PARAMS: ClassVar[ParamTable] = ParamTable(
+        row.with_default(True) if row.name == "p_only" else row for row in ALTITUDE_ROWS)
 
 
 class IntegralAltitudeController(Controller):
@@ -128,16 +165,18 @@ class IntegralAltitudeController(Controller):
     """
 
     name: ClassVar[str] = "altitude-integral"
+    PARAMS: ClassVar[ParamTable] = ParamTable((
+        Param("poles", (-0.8, -1.0, -1.2), "1/s", "3 poles, Re < 0",
+              "closed-loop poles of [int (h - h_e) dt, h - h_e, h'], placed at the design fuel", poles(3)),
+        Param("K", None, "1/(m s), 1/m, s/m", "none or 1 x 3", "given gain, used verbatim instead of placing the poles",
+              optional(matrix((1, 3)))),
+        DESIGN_FUEL,
+    ))
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        poles: object = (-0.8, -1.0, -1.2),
-        K: object | None = None,
-        design_fuel: float | None = None,
-    ) -> None:
+    def __init__(self, vehicle: Vehicle, **params: Unpack[IntegralAltitudeParams]) -> None:
         super().__init__(vehicle)
+        p = self.PARAMS.resolve(params, self.name)
+        K, design_fuel = p["K"], p["design_fuel"]
         self.T_v = _check_can_hover(vehicle)
         fuel = vehicle.fuel_capacity if design_fuel is None else positive_param("design_fuel", design_fuel)
         self.design_mass = vehicle.mass(fuel)
@@ -146,7 +185,7 @@ class IntegralAltitudeController(Controller):
 
             A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
             B = np.array([[0.0], [0.0], [self.T_v / self.design_mass]])
-            K = place_poles(A, B, poles_param("poles", poles, 3)).K
+            K = place_poles(A, B, poles_param("poles", p["poles"], 3)).K
         self.K = matrix_param("K", K, (1, 3)).copy()
         self._k = self.K[0] * self.T_v / self.design_mass
         self._ones = np.ones(self.n_thrusters)

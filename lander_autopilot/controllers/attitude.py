@@ -7,7 +7,7 @@ closed-loop poles stay as designed while fuel burns); ``s = 1`` for a fixed iner
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, TypedDict, Unpack
 
 import numpy as np
 
@@ -17,9 +17,40 @@ from lander_sim.physics.vehicle import Vehicle
 
 from ._params import matrix_param, poles_param, positive_param
 from .base import UPRIGHT_EULER, Controller, ControllerError, Demand, wrap_angle
+from .params import DESIGN_FUEL, Param, ParamTable, any_value, matrix, poles
 
 if TYPE_CHECKING:
     from ..design.gains import GainDesign
+
+
+class QuaternionAttitudeParams(TypedDict, total=False):
+    """Keyword parameters of :class:`QuaternionAttitudeController` (its table: :data:`QUATERNION_ROWS`)."""
+
+    poles: object
+    K: object | None
+    design_fuel: float | None
+
+
+class EulerAttitudeParams(QuaternionAttitudeParams, total=False):
+    """Keyword parameters of :class:`EulerAttitudeController`: the quaternion law's plus ``design_attitude``."""
+
+    design_attitude: object
+
+
+#: Both attitude laws' parameters (eq 28; the quaternion law's model is eq 28 with ``J = I``).
+QUATERNION_ROWS: tuple[Param, ...] = (
+    Param("poles", (-1.0,) * 6, "1/s", "6 poles, Re < 0",
+          "closed-loop poles of the attitude and body rate errors, placed at the design fuel", poles(6)),
+    Param("K", None, "1/rad, s/rad", "none or N x 6", "given gain (N thrusters), used verbatim instead of placing the poles",
+          any_value),  # its shape is the vehicle's: the law checks it
+    DESIGN_FUEL,
+)
+
+#: The Euler law's parameters: both laws' plus the attitude its model is linearised at.
+EULER_ROWS: tuple[Param, ...] = QUATERNION_ROWS + (
+    Param("design_attitude", UPRIGHT_EULER, "rad", "3 angles, sin theta != 0",
+          "ZXZ Euler angles (phi, theta, psi) the model is linearised at", matrix((3,))),
+)
 
 
 class _AttitudeLaw(Controller):
@@ -70,27 +101,21 @@ class EulerAttitudeController(_AttitudeLaw):
     """
 
     name: ClassVar[str] = "attitude-euler"
+    PARAMS: ClassVar[ParamTable] = ParamTable(EULER_ROWS)
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        poles: object = (-1.0,) * 6,
-        K: object | None = None,
-        design_fuel: float | None = None,
-        design_attitude: object = UPRIGHT_EULER,
-    ) -> None:
-        super().__init__(vehicle, K=K, design_fuel=design_fuel)
+    def __init__(self, vehicle: Vehicle, **params: Unpack[EulerAttitudeParams]) -> None:
+        p = self.PARAMS.resolve(params, self.name)
+        super().__init__(vehicle, K=p["K"], design_fuel=p["design_fuel"])  # type: ignore[arg-type]  # checked by its row
         design = None
-        if K is None:
+        if p["K"] is None:
             from ..design.attitude import attitude_model
             from ..design.gains import place_poles
 
-            E_d = matrix_param("design_attitude", design_attitude, (3,))
+            E_d = matrix_param("design_attitude", p["design_attitude"], (3,))
             if abs(math.sin(E_d[1])) < 1e-3:
                 raise ControllerError(f"design_attitude: theta = {E_d[1]} is at the Euler singularity")
             model = attitude_model(vehicle, self.design_fuel, E_d)
-            design = place_poles(model.A, model.B, poles_param("poles", poles, 6))
+            design = place_poles(model.A, model.B, poles_param("poles", p["poles"], 6))
         self._finish(design)
 
     def error(self, state: StateView, demand: Demand) -> np.ndarray:
@@ -117,23 +142,18 @@ class QuaternionAttitudeController(_AttitudeLaw):
     """
 
     name: ClassVar[str] = "attitude-quaternion"
+    PARAMS: ClassVar[ParamTable] = ParamTable(QUATERNION_ROWS)
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        poles: object = (-1.0,) * 6,
-        K: object | None = None,
-        design_fuel: float | None = None,
-    ) -> None:
-        super().__init__(vehicle, K=K, design_fuel=design_fuel)
+    def __init__(self, vehicle: Vehicle, **params: Unpack[QuaternionAttitudeParams]) -> None:
+        p = self.PARAMS.resolve(params, self.name)
+        super().__init__(vehicle, K=p["K"], design_fuel=p["design_fuel"])  # type: ignore[arg-type]  # checked by its row
         design = None
-        if K is None:
+        if p["K"] is None:
             from ..design.attitude import quaternion_attitude_model
             from ..design.gains import place_poles
 
             model = quaternion_attitude_model(vehicle, self.design_fuel)
-            design = place_poles(model.A, model.B, poles_param("poles", poles, 6))
+            design = place_poles(model.A, model.B, poles_param("poles", p["poles"], 6))
         self._finish(design)
         self._qd_key: tuple[float, float, float] | None = None
         self._qd_conj = np.zeros(4)

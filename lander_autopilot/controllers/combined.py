@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, TypedDict, Unpack
+from typing import Any, ClassVar, TypedDict, Unpack, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -16,7 +16,8 @@ from lander_sim.physics.vehicle import Vehicle
 from ._params import matrix_param
 from .altitude import AltitudeController, IntegralAltitudeController
 from .attitude import EulerAttitudeController, QuaternionAttitudeController
-from .base import UPRIGHT_EULER, Controller, ControlOutput, Demand, saturate
+from .base import Controller, ControlOutput, Demand, saturate
+from .params import DESIGN_FUEL, Param, ParamTable, positive, weights
 
 
 def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> np.ndarray:
@@ -146,8 +147,9 @@ class SumController(Controller):
 
 
 class SumParams(TypedDict, total=False):
-    """Keyword parameters of the summed laws ``combined-quaternion`` and, with
-    :class:`EulerSumParams`, ``combined`` and ``integral`` (their YAML names).
+    """Keyword parameters of the summed law ``combined-quaternion`` and, with
+    :class:`EulerSumParams`, ``combined`` and ``integral`` (their YAML names; the tables: each
+    law's ``PARAMS``, composed of its parts' rows).
 
     Each goes to one part, or both (``design_fuel``); one left out takes that part's default.
 
@@ -178,48 +180,68 @@ _ATTITUDE_PART = {"attitude_poles": "poles", "K_attitude": "K", "design_fuel": "
                   "design_attitude": "design_attitude"}
 
 
-def _parts(params: Mapping[str, object], accepted: type) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The altitude part's and the attitude part's keyword arguments from a summed law's ``params``
-    (renamed; one left out is left to the part's default). A name the TypedDict ``accepted`` does
-    not list is a TypeError, as an unexpected keyword is for any call."""
-    unknown = sorted(set(params) - set(accepted.__annotations__))
-    if unknown:
-        raise TypeError(f"unexpected keyword argument(s) {', '.join(unknown)}; accepted: {', '.join(sorted(accepted.__annotations__))}")
-    alt = {_ALTITUDE_PART[k]: v for k, v in params.items() if k in _ALTITUDE_PART}
-    att = {_ATTITUDE_PART[k]: v for k, v in params.items() if k in _ATTITUDE_PART}
+def sum_rows(altitude: type[AltitudeController | IntegralAltitudeController],
+             attitude: type[EulerAttitudeController | QuaternionAttitudeController]) -> tuple[Param, ...]:
+    """A summed law's rows from its parts' tables (each part's ``PARAMS``): each part's parameter
+    under the summed law's name (``poles`` as ``altitude_poles`` ...) with the part's default,
+    unit, range and check; ``design_fuel`` and ``design_attitude`` are the parts' own rows."""
+    alt, att = altitude.PARAMS, attitude.PARAMS
+    rows = [
+        alt["poles"].renamed("altitude_poles", f"the altitude part's closed-loop poles ({altitude.name}'s poles)"),
+        att["poles"].renamed("attitude_poles", f"the attitude part's closed-loop poles ({attitude.name}'s poles)"),
+        alt["K"].renamed("K_altitude", f"the altitude part's given gain ({altitude.name}'s K)"),
+        att["K"].renamed("K_attitude", f"the attitude part's given gain ({attitude.name}'s K)"),
+        alt["design_fuel"],
+    ]
+    if "design_attitude" in att:
+        rows.append(att["design_attitude"])
+    return tuple(rows)
+
+
+def _parts(params: Mapping[str, object], table: ParamTable, law: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The altitude part's and the attitude part's keyword arguments from a summed law's ``params``,
+    every one resolved by the law's ``table`` (an unknown name or a bad value: ControllerError
+    naming it) and renamed to the part's name."""
+    p = table.resolve(params, law)
+    alt = {_ALTITUDE_PART[k]: v for k, v in p.items() if k in _ALTITUDE_PART}
+    att = {_ATTITUDE_PART[k]: v for k, v in p.items() if k in _ATTITUDE_PART}
     return alt, att
 
 
 class CombinedController(SumController):
     """Altitude state feedback (poles ``(-0.9, -1.1)``) + Euler attitude feedback (poles all -1).
-    Parameters: :class:`EulerSumParams`."""
+    Parameters: :class:`EulerSumParams`, the table :attr:`PARAMS`."""
 
     name: ClassVar[str] = "combined"
+    PARAMS: ClassVar[ParamTable] = ParamTable(sum_rows(AltitudeController, EulerAttitudeController))
 
     def __init__(self, vehicle: Vehicle, **params: Unpack[EulerSumParams]) -> None:
-        alt, att = _parts(params, EulerSumParams)
+        alt, att = _parts(params, self.PARAMS, self.name)
         super().__init__(vehicle, AltitudeController(vehicle, **alt), EulerAttitudeController(vehicle, **att))
 
 
 class CombinedQuaternionController(SumController):
     """Altitude state feedback + the quaternion attitude law (no gimbal lock). Parameters:
-    :class:`SumParams`."""
+    :class:`SumParams`, the table :attr:`PARAMS`."""
 
     name: ClassVar[str] = "combined-quaternion"
+    PARAMS: ClassVar[ParamTable] = ParamTable(sum_rows(AltitudeController, QuaternionAttitudeController))
 
     def __init__(self, vehicle: Vehicle, **params: Unpack[SumParams]) -> None:
-        alt, att = _parts(params, SumParams)
+        alt, att = _parts(params, self.PARAMS, self.name)
         super().__init__(vehicle, AltitudeController(vehicle, **alt), QuaternionAttitudeController(vehicle, **att))
 
 
 class IntegralController(SumController):
     """Altitude with integral action (rejects a constant disturbance) + Euler attitude feedback.
-    Parameters: :class:`EulerSumParams` (``altitude_poles``: three, default ``(-0.8, -1.0, -1.2)``)."""
+    Parameters: :class:`EulerSumParams` (``altitude_poles``: three, default ``(-0.8, -1.0, -1.2)``),
+    the table :attr:`PARAMS`."""
 
     name: ClassVar[str] = "integral"
+    PARAMS: ClassVar[ParamTable] = ParamTable(sum_rows(IntegralAltitudeController, EulerAttitudeController))
 
     def __init__(self, vehicle: Vehicle, **params: Unpack[EulerSumParams]) -> None:
-        alt, att = _parts(params, EulerSumParams)
+        alt, att = _parts(params, self.PARAMS, self.name)
         super().__init__(vehicle, IntegralAltitudeController(vehicle, **alt), EulerAttitudeController(vehicle, **att))
 
 
@@ -232,6 +254,17 @@ LQR_Q_ATTITUDE = (100.0, 100.0, 100.0, 100.0, 100.0, 100.0)
 LQR_R_ATTITUDE = 100.0
 
 
+class LQRParams(TypedDict, total=False):
+    """Keyword parameters of :class:`LQRController` (its table: :attr:`LQRController.PARAMS`)."""
+
+    Q_altitude: ArrayLike
+    R_altitude: float
+    Q_attitude: ArrayLike
+    R_attitude: float
+    design_fuel: float | None
+    design_attitude: ArrayLike
+
+
 class LQRController(SumController):
     """Combined law with both gains from LQR (``control.lqr``) instead of pole placement.
 
@@ -239,29 +272,31 @@ class LQRController(SumController):
     """
 
     name: ClassVar[str] = "lqr"
+    PARAMS: ClassVar[ParamTable] = ParamTable((
+        Param("Q_altitude", LQR_Q_ALTITUDE, "1/m^2, s^2/m^2", "2 numbers >= 0",
+              "diagonal of the altitude state weight, on [h - h_e, h']", weights(2)),
+        Param("R_altitude", LQR_R_ALTITUDE, "-", "> 0", "weight of the collective throttle", positive),
+        Param("Q_attitude", LQR_Q_ATTITUDE, "1/rad^2, s^2/rad^2", "6 numbers >= 0",
+              "diagonal of the attitude state weight, on the Euler angle and body rate errors", weights(6)),
+        Param("R_attitude", LQR_R_ATTITUDE, "-", "> 0", "weight of each thruster's differential throttle", positive),
+        DESIGN_FUEL,
+        EulerAttitudeController.PARAMS["design_attitude"],
+    ))
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        Q_altitude: ArrayLike = LQR_Q_ALTITUDE,
-        R_altitude: float = LQR_R_ALTITUDE,
-        Q_attitude: ArrayLike = LQR_Q_ATTITUDE,
-        R_attitude: float = LQR_R_ATTITUDE,
-        design_fuel: float | None = None,
-        design_attitude: ArrayLike = UPRIGHT_EULER,
-    ) -> None:
+    def __init__(self, vehicle: Vehicle, **params: Unpack[LQRParams]) -> None:
         from ..design.altitude import altitude_model
         from ..design.attitude import attitude_model
         from ..design.gains import lqr
 
-        fuel = vehicle.fuel_capacity if design_fuel is None else design_fuel
-        qa = matrix_param("Q_altitude", Q_altitude, (2,))
-        ra = matrix_param("R_altitude", R_altitude, ())
-        qt = matrix_param("Q_attitude", Q_attitude, (6,))
-        rt = matrix_param("R_attitude", R_attitude, ())
+        p = self.PARAMS.resolve(params, self.name)
+        design_fuel = p["design_fuel"]
+        fuel = vehicle.fuel_capacity if design_fuel is None else cast(float, design_fuel)  # checked by its row
+        qa = matrix_param("Q_altitude", p["Q_altitude"], (2,))
+        ra = matrix_param("R_altitude", p["R_altitude"], ())
+        qt = matrix_param("Q_attitude", p["Q_attitude"], (6,))
+        rt = matrix_param("R_attitude", p["R_attitude"], ())
         alt = altitude_model(vehicle, fuel, 0.0)
-        att = attitude_model(vehicle, fuel, matrix_param("design_attitude", design_attitude, (3,)))
+        att = attitude_model(vehicle, fuel, matrix_param("design_attitude", p["design_attitude"], (3,)))
         self.altitude_design = lqr(alt.A, alt.B, np.diag(qa), ra * np.eye(1))
         self.attitude_design = lqr(att.A, att.B, np.diag(qt), rt * np.eye(vehicle.n_thrusters))
         super().__init__(

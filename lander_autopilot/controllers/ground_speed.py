@@ -24,7 +24,7 @@ a 50 m/s start does not wind it up.
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import ClassVar, TypedDict, Unpack
 
 import numpy as np
 
@@ -34,11 +34,12 @@ from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 from ..design.translational import local_frame
-from ._params import matrix_param, poles_param, positive_param
+from ._params import matrix_param, poles_param
 from .altitude import AltitudeController
 from .attitude import QuaternionAttitudeController
-from .base import Controller, ControllerError, Demand
-from .combined import Mix, SumController
+from .base import Controller, Demand
+from .combined import CombinedQuaternionController, Mix, SumController
+from .params import DESIGN_FUEL, Param, ParamTable, below, lqr_weights, optional, poles
 
 
 class _Collective(Controller):
@@ -55,45 +56,59 @@ class _Collective(Controller):
         return self.level * self._ones
 
 
+class GroundSpeedParams(TypedDict, total=False):
+    """Keyword parameters of :class:`GroundSpeedController` (its table: :attr:`GroundSpeedController.PARAMS`)."""
+
+    velocity_poles: object
+    velocity_lqr: object | None
+    max_tilt: float
+    altitude_poles: object
+    attitude_poles: object
+    design_fuel: float | None
+
+
+_SUM = CombinedQuaternionController.PARAMS  # the altitude and attitude parts' rows, as a summed law names them
+
+
 class GroundSpeedController(SumController):
     """Holds the demand altitude and tracks the demand horizontal velocity (zero if none).
 
-    Parameters: ``velocity_poles`` (outer loop, per axis), ``velocity_lqr`` (``[q_int, q_e, r]``:
-    use LQR instead of placement), ``max_tilt`` [rad], ``altitude_poles``, ``attitude_poles``,
-    ``design_fuel``.
+    Parameters: the table :attr:`PARAMS` (``lander controllers ground-speed``): the outer loop's
+    ``velocity_poles`` (per axis) or ``velocity_lqr`` (``[q_int, q_e, r]``: LQR instead of
+    placement), ``max_tilt``, and the parts' ``altitude_poles``, ``attitude_poles`` and ``design_fuel``.
     """
 
     name: ClassVar[str] = "ground-speed"
+    PARAMS: ClassVar[ParamTable] = ParamTable((
+        Param("velocity_poles", (-0.45, -0.5), "1/s", "2 poles, Re < 0", "the ground-speed loop's poles (per axis)",
+              poles(2)),
+        Param("velocity_lqr", None, "1/m^2, s^2/m^2, s^4/m^2", "none or [q_int >= 0, q_e >= 0, r > 0]",
+              "the ground-speed loop's LQR weights, used instead of velocity_poles", optional(lqr_weights)),
+        Param("max_tilt", 0.7, "rad", "(0, 1.3)", "tilt limit of the thrust from the vertical",
+              below(1.3, "1.3 rad (75 deg)")),
+        _SUM["altitude_poles"],
+        _SUM["attitude_poles"].with_default((-2.0,) * 6),  # four times the outer loop's speed (module docstring)
+        DESIGN_FUEL,
+    ))
 
-    def __init__(
-        self,
-        vehicle: Vehicle,
-        *,
-        velocity_poles: object = (-0.45, -0.5),
-        velocity_lqr: object | None = None,
-        max_tilt: float = 0.7,
-        altitude_poles: object = (-0.9, -1.1),
-        attitude_poles: object = (-2.0,) * 6,
-        design_fuel: float | None = None,
-    ) -> None:
+    def __init__(self, vehicle: Vehicle, **params: Unpack[GroundSpeedParams]) -> None:
         from ..design.gains import lqr, place_poles
         from ..design.translational import horizontal_velocity_model
 
-        self.max_tilt = positive_param("max_tilt", max_tilt)
-        if self.max_tilt >= 1.3:
-            raise ControllerError(f"max_tilt: expected a tilt below 1.3 rad (75 deg), got {self.max_tilt}")
+        p = GroundSpeedController.PARAMS.resolve(params, GroundSpeedController.name)
+        self.max_tilt = float(p["max_tilt"])  # type: ignore[arg-type]  # checked by its row
         A, B = horizontal_velocity_model()
-        if velocity_lqr is None:
-            self.velocity_design = place_poles(A, B, poles_param("velocity_poles", velocity_poles, 2))
+        if p["velocity_lqr"] is None:
+            self.velocity_design = place_poles(A, B, poles_param("velocity_poles", p["velocity_poles"], 2))
         else:
-            qi, qe, r = matrix_param("velocity_lqr", velocity_lqr, (3,))
+            qi, qe, r = matrix_param("velocity_lqr", p["velocity_lqr"], (3,))
             self.velocity_design = lqr(A, B, np.diag([qi, qe]), np.array([[r]]))
         self.k_i, self.k_p = (float(k) for k in self.velocity_design.K[0])
-        self.vertical = AltitudeController(vehicle, poles=altitude_poles, design_fuel=design_fuel)
+        design_fuel = p["design_fuel"]
+        self.vertical = AltitudeController(vehicle, poles=p["altitude_poles"], design_fuel=design_fuel)  # type: ignore[arg-type]
         self.T_v = self.vertical.T_v
-        super().__init__(
-            vehicle, _Collective(vehicle), QuaternionAttitudeController(vehicle, poles=attitude_poles, design_fuel=design_fuel)
-        )
+        attitude = QuaternionAttitudeController(vehicle, poles=p["attitude_poles"], design_fuel=design_fuel)  # type: ignore[arg-type]
+        super().__init__(vehicle, _Collective(vehicle), attitude)
         self._integral = np.zeros(2)
         self.reset()
 

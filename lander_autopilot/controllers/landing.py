@@ -74,17 +74,7 @@ from .base import (
 from .combined import Mix
 from .failure import ChuteTorqueModel, SpinAllocation, ThreeThrusterAllocation, ThrusterFailureDetector
 from .ground_speed import GroundSpeedController
-from .params import (
-    Param,
-    ParamTable,
-    below,
-    boolean,
-    design_fuel,
-    finite,
-    fraction_open,
-    poles,
-    positive,
-)
+from .params import Param, ParamTable, boolean, finite, fraction_open, positive
 
 MODES = ("coast", "braking", "flare")
 
@@ -131,12 +121,8 @@ class LandingController(GroundSpeedController):
         Param("probe_throttle", 0.25, "-", "> 0", "probe burn's throttle, added on every thruster", positive),
         Param("probe_period", 2.0, "s", "> 0", "time between probe burns", positive),
         Param("probe_time", 0.3, "s", "> 0", "length of a probe burn", positive),
-        Param("max_tilt", 0.7, "rad", "(0, 1.3)", "tilt limit of the thrust from the vertical above tilt_height",
-              below(1.3, "1.3 rad (75 deg)")),
-        Param("velocity_poles", (-0.45, -0.5), "1/s", "2 poles, Re < 0", "the ground-speed loop's poles (per axis)",
-              poles(2)),
-        Param("attitude_poles", (-2.0,) * 6, "1/s", "6 poles, Re < 0", "the quaternion attitude law's poles", poles(6)),
-        Param("design_fuel", None, "kg", "none or > 0", "fuel the laws are designed at (none: a full tank)", design_fuel),
+        # the ground-speed law's (the horizontal loop and the attitude law are its)
+        *(GroundSpeedController.PARAMS[k] for k in ("max_tilt", "velocity_poles", "attitude_poles", "design_fuel")),
     ))
 
     def __init__(self, vehicle: Vehicle, **params: object) -> None:

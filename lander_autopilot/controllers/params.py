@@ -10,6 +10,7 @@ A row's ``check`` turns the value given into the one the law uses, or raises
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -35,6 +36,15 @@ class Param:
     range: str
     meaning: str
     check: Check
+
+    def renamed(self, name: str, meaning: str) -> Param:
+        """This row under another name: a part's parameter as the law composed of parts takes it
+        (``poles`` of the altitude part as ``altitude_poles``), with the part's unit, range and check."""
+        return dataclasses.replace(self, name=name, meaning=meaning)
+
+    def with_default(self, default: object) -> Param:
+        """This row with another default (a law that uses the part with another setting)."""
+        return dataclasses.replace(self, default=default)
 
 
 class ParamTable:
@@ -111,7 +121,10 @@ def non_negative(name: str, value: object) -> object:
 
 
 def finite(name: str, value: object) -> object:
-    return float(matrix_param(name, value, ()))
+    try:
+        return float(matrix_param(name, value, ()))
+    except ControllerError:
+        raise ControllerError(f"{name}: expected a finite number, got {value!r}") from None
 
 
 def fraction_open(name: str, value: object) -> object:
@@ -214,9 +227,39 @@ def design_fuel(name: str, value: object) -> object:
     return value
 
 
+def matrix(shape: tuple[int, ...]) -> Check:
+    """A finite numeric array of exactly ``shape``; passed on as given (the law converts it)."""
+    def check(name: str, value: object) -> object:
+        matrix_param(name, value, shape)
+        return value
+    return check
+
+
+def weights(n: int) -> Check:
+    """``n`` finite numbers >= 0 (the diagonal of an LQR state weight); passed on as given."""
+    def check(name: str, value: object) -> object:
+        w = matrix_param(name, value, (n,))
+        if np.any(w < 0.0):
+            raise ControllerError(f"{name}: expected {n} numbers >= 0, got {w.tolist()}")
+        return value
+    return check
+
+
+def lqr_weights(name: str, value: object) -> object:
+    """``[q_int, q_e, r]``: two state weights >= 0 and an input weight > 0; passed on as given."""
+    w = matrix_param(name, value, (3,))
+    if w[0] < 0.0 or w[1] < 0.0 or w[2] <= 0.0:
+        raise ControllerError(f"{name}: expected [q_int >= 0, q_e >= 0, r > 0], got {w.tolist()}")
+    return value
+
+
 def any_value(name: str, value: object) -> object:
     """Checked by the law itself (a matrix whose shape depends on the vehicle)."""
     return value
 
 
 PI_2 = math.pi / 2
+
+#: Every law's ``design_fuel``: the fuel its gains are designed at (the model's mass, eq 16 and 25-26).
+DESIGN_FUEL = Param("design_fuel", None, "kg", "none or > 0", "fuel the law's gains are designed at (none: a full tank)",
+                    design_fuel)

@@ -68,9 +68,9 @@ def available_controllers() -> list[str]:
 
 def _accepted(factory: Factory) -> list[str] | None:
     """The keyword parameters ``factory`` takes after the vehicle, sorted: its parameter table's
-    (:class:`~.params.ParamTable` as ``PARAMS``) if it has one, else its signature's; ``None`` if
-    it takes any (a plain ``**params``: it checks them itself). ``**params: Unpack[SomeTypedDict]``
-    takes that TypedDict's keys (the summed laws' :class:`~.combined.SumParams`)."""
+    (:class:`~.params.ParamTable` as ``PARAMS``: every built-in law has one) if it has one, else its
+    signature's (a plug-in's); ``None`` if it takes any (a plain ``**params``: it checks them
+    itself). ``**params: Unpack[SomeTypedDict]`` takes that TypedDict's keys."""
     table = getattr(factory, "PARAMS", None)
     if isinstance(table, ParamTable):
         return sorted(table.names)
@@ -113,8 +113,8 @@ def _factory(name: str) -> Factory:
 
 
 def parameter_table(name: str) -> ParamTable | None:
-    """The parameter table of controller ``name`` (None for a law without one: a plug-in, or a law
-    whose parameters are its constructor's keywords); ControllerError for an unknown name."""
+    """The parameter table of controller ``name`` (every built-in law has one; None for a plug-in
+    without one); ControllerError for an unknown name."""
     factory = _factory(name)
     table = getattr(factory, "PARAMS", None)
     return table if isinstance(table, ParamTable) else None

@@ -122,6 +122,17 @@ def check_parameter(name: str, value: Any) -> str | None:
     return check_value(SPECS, name, value)
 
 
+def check_change(name: str, value: Any) -> str | None:
+    """Reason the running node refuses to set parameter ``name`` to ``value``, or ``None``.
+
+    Besides this node's own parameters, rclpy's ``use_sim_time`` may not be turned on: the
+    simulator is the source of sim time, so its node runs on the wall clock.
+    """
+    if name == "use_sim_time":
+        return "the simulator is the clock: use_sim_time must stay false" if value else None
+    return check_parameter(name, value)
+
+
 def check_params_file(path: str | Path) -> dict[str, Any]:
     """Validate a ROS parameters YAML file for this node; return its ``ros__parameters``.
 

@@ -29,6 +29,10 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.whole_flight:
         print("lander record: --duration needs --whole-flight (a recorder alone cannot end a flight)", file=sys.stderr)
         return 2
+    if args.start and not args.whole_flight:
+        print("lander record: --start needs --whole-flight (it resumes the flight after the recorder's reset)",
+              file=sys.stderr)
+        return 2
     if not args.live:
         return _record(args)
     import subprocess

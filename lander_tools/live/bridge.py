@@ -69,7 +69,7 @@ DEFAULT_MAX_RATE = 60.0
 WEB_DIR = Path(__file__).resolve().parent / "web"
 AUTOPILOT_PARAMETERS = ("demand_altitude", "controller", "controller_params")
 #: The simulator's topics the bridge subscribes to: what a launcher that starts it must count
-#: among the subscriptions to wait for (lander_tools.launcher.expected_subscribers).
+#: among the subscriptions to wait for (lander_tools.fly.flight.expected_subscribers).
 SUBSCRIBED_TOPICS = ("/lander/state", "/lander/events", "/diagnostics")
 NODE_NAME = "lander_live"
 

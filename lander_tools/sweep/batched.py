@@ -18,7 +18,7 @@ the Simulation would refuse) is re-flown per flight, so its error row is the per
 
 **Fast set-up.** Building a scene and a Simulation per flight only to read those values back
 costs about four times the compiled flight itself, so when the nominal scene allows it
-(:class:`_Template`: a preset vehicle with ``gyration_sq``, quaternions, no failures or gusts of its
+(:class:`SetupTemplate`: a preset vehicle with ``gyration_sq``, quaternions, no failures or gusts of its
 own, no dispersion keys in its file) the values are derived from the nominal scene's Simulation,
 built once per process, by the very operations the scene loader and the Simulation apply (dry
 mass and inertia times their scales, thrust ``-d_i (T_i s_i)`` per thruster and its torque
@@ -41,12 +41,12 @@ from lander_tools.sweep import batched_kernel as bk
 from lander_tools.sweep.case_scene import flown_scene, nominal_scene
 from lander_tools.sweep.dispersion import FlightCase, draw_case
 from lander_tools.sweep.flight import (
-    _controller,
-    _touchdown_speed,
+    case_controller,
     control_period,
     demand_schedule,
     fly_task,
     make_row,
+    touchdown_speed_of,
 )
 from lander_tools.sweep.metrics import Samples, altitude_and_tilt
 from lander_tools.sweep.spec import SweepSpec
@@ -62,7 +62,7 @@ def laws_of(spec: SweepSpec) -> list[Any] | None:
     from lander_autopilot.controllers.compiled import compiled_form
 
     vehicle = nominal_scene(spec).vehicle
-    laws = [compiled_form(_controller(spec, ci, vehicle)) for ci in range(len(spec.controllers))]
+    laws = [compiled_form(case_controller(spec, ci, vehicle)) for ci in range(len(spec.controllers))]
     return None if any(law is None for law in laws) else laws
 
 
@@ -82,13 +82,13 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
     if spec.end.hover_hold > 0:
         return "end.hover_hold: the compiled loop has no hover-hold stop"
     for ci, choice in enumerate(spec.controllers):
-        if compiled_form(_controller(spec, ci, scene.vehicle)) is None:
+        if compiled_form(case_controller(spec, ci, scene.vehicle)) is None:
             return f"controller {choice.label!r} has no compiled form"
     return None
 
 
 @dataclass
-class _Flight:
+class FlightSetup:
     """One flight's set-up (the per-flight path's objects, kept for touchdown and fallback).
 
     ``sim`` is the flight's Simulation; with the fast set-up it is None until needed
@@ -110,25 +110,26 @@ class _Flight:
         return self.sim
 
 
-def _setup(spec: SweepSpec, index: int, n_thrusters: int) -> _Flight:
+def setup_flight(spec: SweepSpec, index: int, n_thrusters: int) -> FlightSetup:
+    """Flight ``index`` set up as the per-flight path does: its case drawn, its scene and Simulation built."""
     from lander_sim.simulation import Simulation
 
     case = draw_case(spec, index, n_thrusters)
     sim = Simulation(flown_scene(spec, case))
-    return _Flight(index, case, sim, demand_schedule(spec, nominal_scene(spec), case))
+    return FlightSetup(index, case, sim, demand_schedule(spec, nominal_scene(spec), case))
 
 
 #: Vehicle keys of a nominal scene file the fast set-up reproduces (a dispersion key would be overwritten).
 _PLAIN_VEHICLE_KEYS = {"preset", "thrusters", "disabled", "size"}
 #: The case fields the fast set-up writes into a flight; a case with others (a new dispersion) is
-#: set up by building its scene and Simulation until :meth:`_Template.values` learns them.
+#: set up by building its scene and Simulation until :meth:`SetupTemplate.values` learns them.
 _KNOWN_CASE_FIELDS = {"index", "seed", "tilt", "tilt_azimuth", "body_rate_B", "altitude_offset", "velocity_W",
                       "wind_mean_W", "wind_gust", "demand_step", "mass_error", "inertia_error", "thrust_error",
                       "failed_thruster", "failure_time", "orbit_altitude", "orbit_phase", "density_error",
                       "thruster_cant", "thruster_cant_azimuth"}
 
 
-class _Template:
+class SetupTemplate:
     """What every flight of a sweep shares, from the nominal scene and its Simulation (built once
     per process), and the arithmetic that makes one flight's packed values from its case.
 
@@ -137,7 +138,7 @@ class _Template:
 
     def __init__(self, spec: SweepSpec) -> None:
         from lander_sim.simulation import Simulation
-        from lander_tools.sweep.case_scene import _raw
+        from lander_tools.sweep.case_scene import scene_data
 
         scene = self.scene = nominal_scene(spec)
         self.why_not: str | None = None
@@ -145,7 +146,7 @@ class _Template:
         fk = sim.fast_kernel
         v = scene.vehicle
         try:
-            raw_vehicle = set(_raw(spec)["vehicle"])
+            raw_vehicle = set(scene_data(spec)["vehicle"])
         except Exception as exc:  # noqa: BLE001 - the per-flight set-up reports it
             raw_vehicle, self.why_not = set(), f"scene not representable: {exc}"
         if fk is None:
@@ -162,7 +163,7 @@ class _Template:
             extra = {f.name for f in dataclasses.fields(FlightCase)} - _KNOWN_CASE_FIELDS
             if extra:
                 self.why_not = f"the case has fields the fast set-up does not write: {sorted(extra)}"
-        if self.why_not is not None:
+        if self.why_not is not None or fk is None:  # no kernel sets why_not
             return
         self.dt = sim.dt
         self.params = fk.params.copy()
@@ -242,25 +243,25 @@ class _Template:
         return out
 
 
-_TEMPLATES: dict[str, _Template] = {}
+_TEMPLATES: dict[str, SetupTemplate] = {}
 
 
-def _template(spec: SweepSpec) -> _Template:
-    """The spec's :class:`_Template` (per process, rebuilt if the nominal scene was reloaded)."""
+def template_of(spec: SweepSpec) -> SetupTemplate:
+    """The spec's :class:`SetupTemplate` (per process, rebuilt if the nominal scene was reloaded)."""
     scene = nominal_scene(spec)
     tpl = _TEMPLATES.get(spec.scene)
     if tpl is None or tpl.scene is not scene:
-        tpl = _TEMPLATES[spec.scene] = _Template(spec)
+        tpl = _TEMPLATES[spec.scene] = SetupTemplate(spec)
     return tpl
 
 
-def _fast_setup(spec: SweepSpec, index: int, tpl: _Template) -> _Flight:
-    """Flight ``index`` set up without building its scene or Simulation (see :class:`_Template`)."""
+def setup_flight_fast(spec: SweepSpec, index: int, tpl: SetupTemplate) -> FlightSetup:
+    """Flight ``index`` set up without building its scene or Simulation (see :class:`SetupTemplate`)."""
     case = draw_case(spec, index, len(tpl.max_thrust))
-    return _Flight(index, case, None, demand_schedule(spec, tpl.scene, case), spec, tpl.values(spec, case))
+    return FlightSetup(index, case, None, demand_schedule(spec, tpl.scene, case), spec, tpl.values(spec, case))
 
 
-def _sim_values(fl: _Flight) -> dict[str, Any]:
+def _sim_values(fl: FlightSetup) -> dict[str, Any]:
     """What :func:`_pack` needs, read from the flight's Simulation (the reference set-up)."""
     sim = fl.sim
     fk = sim.fast_kernel
@@ -268,17 +269,17 @@ def _sim_values(fl: _Flight) -> dict[str, Any]:
             "mean_wind": sim.mean_wind_W, "gust": sim.gusts, "failures": sim.scheduled_failures, "copy_rng": True}
 
 
-def _agrees(spec: SweepSpec, fl: _Flight, n_steps: int = 4) -> bool:
+def fast_setup_agrees(spec: SweepSpec, fl: FlightSetup, n_steps: int = 4) -> bool:
     """Whether the fast set-up of flight ``fl`` packs bit for bit what its Simulation gives."""
-    ref = _setup(spec, fl.index, nominal_scene(spec).vehicle.n_thrusters)
+    ref = setup_flight(spec, fl.index, nominal_scene(spec).vehicle.n_thrusters)
     # copy_rng: draw from a copy of the gust generator, so ``fl`` keeps its normals for the flight.
-    fast = _Flight(fl.index, fl.case, None, fl.demand, spec, {**(fl.values or {}), "copy_rng": True})
-    a, b = _pack([fast], n_steps), _pack([ref], n_steps)
+    fast = FlightSetup(fl.index, fl.case, None, fl.demand, spec, {**(fl.values or {}), "copy_rng": True})
+    a, b = pack_flights([fast], n_steps), pack_flights([ref], n_steps)
     return ref.demand == fl.demand and all(
         a[k].dtype == b[k].dtype and a[k].shape == b[k].shape and a[k].tobytes() == b[k].tobytes() for k in b)
 
 
-def _pack(flights: list[_Flight], n_steps: int, tpl: _Template | None = None) -> dict[str, np.ndarray]:
+def pack_flights(flights: list[FlightSetup], n_steps: int, tpl: SetupTemplate | None = None) -> dict[str, np.ndarray]:
     """Arrays over flights for :func:`~.batched_kernel.fly_flights` (see its docstring)."""
     from lander_autopilot.controllers.base import Demand
     from lander_autopilot.controllers.compiled import N_DEMAND, demand_array
@@ -324,14 +325,14 @@ def _pack(flights: list[_Flight], n_steps: int, tpl: _Template | None = None) ->
     return a
 
 
-def _finish_touchdown(fl: _Flight, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
+def _finish_touchdown(fl: FlightSetup, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
     """Hand the touchdown step to the flight's Simulation: ``(speed, figures, altitude error, tilt, fuel)``
     of the interpolated state, as the per-flight loop sees it."""
     sim = fl.simulation()
     sim.drain_events()
     # The Simulation's own after-step checks: touchdown interpolation, classification, event.
     sim.adopt_step(out["y_prev_last"][f], out["y_last"][f], int(out["k_last"][f]))
-    speed, figures = _touchdown_speed(sim, out["v_before"][f].copy())
+    speed, figures = touchdown_speed_of(sim, out["v_before"][f].copy())
     st = sim.state()
     h, tilt = altitude_and_tilt(st.r_W, st.q)
     return speed, figures, h, tilt, float(st.fuel)
@@ -349,27 +350,27 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
     scene0 = nominal_scene(spec)
     n_sub, period = control_period(spec, scene0.dt)
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
-    flights: list[_Flight] = []
+    flights: list[FlightSetup] = []
     rows: list[dict[str, Any]] = []
     broken: list[int] = []
-    tpl = _template(spec) if fast_setup else None
+    tpl = template_of(spec) if fast_setup else None
     if tpl is not None and tpl.why_not is not None:
         tpl = None
     for i in indices:
         try:
             if tpl is not None:
-                flights.append(_fast_setup(spec, i, tpl))
+                flights.append(setup_flight_fast(spec, i, tpl))
             else:
-                flights.append(_setup(spec, i, scene0.vehicle.n_thrusters))
+                flights.append(setup_flight(spec, i, scene0.vehicle.n_thrusters))
         except Exception:  # noqa: BLE001 - the per-flight path makes the error row
             broken.append(i)
-    if tpl is not None and flights and not _agrees(spec, flights[0]):
+    if tpl is not None and flights and not fast_setup_agrees(spec, flights[0]):
         # Guard: the fast set-up must reproduce the reference one exactly (checked on each chunk's
         # first flight, one scene + Simulation a chunk); if not, set every flight up the reference way.
         tpl = None
-        flights = [_setup(spec, fl.index, scene0.vehicle.n_thrusters) for fl in flights]
+        flights = [setup_flight(spec, fl.index, scene0.vehicle.n_thrusters) for fl in flights]
     if flights:
-        inputs = _pack(flights, n_ctrl * n_sub, tpl)
+        inputs = pack_flights(flights, n_ctrl * n_sub, tpl)
         if tpl is not None:
             stop, dt = tpl.stop, tpl.dt
         else:
@@ -386,7 +387,7 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
     return rows
 
 
-def _row(spec: SweepSpec, ci: int, fl: _Flight, out: dict[str, np.ndarray], f: int, period: float) -> dict[str, Any]:
+def _row(spec: SweepSpec, ci: int, fl: FlightSetup, out: dict[str, np.ndarray], f: int, period: float) -> dict[str, Any]:
     term = int(out["terminal"][f])
     if term == bk.TERM_ERROR:
         return fly_task(spec, ci, fl.index)
@@ -395,7 +396,8 @@ def _row(spec: SweepSpec, ci: int, fl: _Flight, out: dict[str, np.ndarray], f: i
     rate = out["rate"][f, :ns].copy()
     fuel_end = float(out["fuel"][f, 1])
     before, after, t_change = fl.demand
-    speed, figures, terminal = math.nan, {}, "ok"
+    figures: dict[str, Any] = {}
+    speed, terminal = math.nan, "ok"
     if term == bk.TERM_DIVERGED:
         terminal, fuel_end = "diverged", math.nan
     elif term == bk.TERM_TOUCHDOWN:
@@ -429,7 +431,7 @@ def fly_compiled(sim: Any, law: Any, demand_altitude: float, duration: float, n_
     flight that many times in one call (for timing). Returns :func:`~.batched_kernel.fly_flights`'s arrays."""
     period = n_sub * sim.dt
     n_ctrl = int(math.floor(duration / period + 1e-9))
-    inputs = _pack([_Flight(-1, FlightCase(-1, 0), sim, (demand_altitude, demand_altitude, 0.0))] * copies, n_ctrl * n_sub)
+    inputs = pack_flights([FlightSetup(-1, FlightCase(-1, 0), sim, (demand_altitude, demand_altitude, 0.0))] * copies, n_ctrl * n_sub)
     params, K = law.pack()
     stop = sim.ground.contact_radius if sim.ground is not None else 0.0
     return bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, sim.dt, stop, parallel, record_states)

@@ -34,8 +34,8 @@ invalidate_if_changed(__file__, _law.__file__, _kernel.__file__)
 try:
     from numba import njit, prange
 except ImportError:  # pragma: no cover - numba is a requirement of this path
-    njit = None
-    prange = range
+    njit = None  # type: ignore[assignment]  # no compiled path: the plain-Python loops below run
+    prange = range  # type: ignore[misc]
 
 __all__ = ["HAVE_NUMBA", "TERM_DIVERGED", "TERM_ERROR", "TERM_OK", "TERM_TOUCHDOWN", "fly_flights"]
 
@@ -161,11 +161,11 @@ if njit is not None:
     _fly_one = njit(cache=True)(_fly_one)
     _fly_all_parallel = njit(cache=True, parallel=True)(_fly_all)
     _fly_all_serial = njit(cache=True)(_fly_all)
-else:  # pragma: no cover
-    _fly_all_parallel = _fly_all_serial = _fly_all
+else:  # pragma: no cover - numba absent
+    _fly_all_parallel = _fly_all_serial = _fly_all  # type: ignore[unreachable]
 
 
-def fly_flights(inputs: dict, law: np.ndarray, K: np.ndarray, n_ctrl: int, n_sub: int, period: float, dt: float,
+def fly_flights(inputs: dict[str, np.ndarray], law: np.ndarray, K: np.ndarray, n_ctrl: int, n_sub: int, period: float, dt: float,
                 stop_radius: float, parallel: bool = True, record_states: bool = False) -> dict[str, np.ndarray]:
     """Fly every flight of ``inputs`` (arrays over flights, see :mod:`lander_tools.sweep.batched`).
 

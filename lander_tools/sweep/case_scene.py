@@ -64,7 +64,10 @@ def clear_caches() -> None:
     _RAW.clear()
 
 
-def _raw(spec: SweepSpec) -> dict[str, Any]:
+def scene_data(spec: SweepSpec) -> dict[str, Any]:
+    """The sweep's scene file as parsed YAML (cached per scene), into which a flight's case is written.
+
+    Raises :class:`NotRepresentable` when the scene was not loaded from a file."""
     scene = nominal_scene(spec)
     data = _RAW.get(spec.scene)
     if data is None:
@@ -172,7 +175,7 @@ def dispersed_initial_state(scene: Any, case: FlightCase) -> np.ndarray:
 def case_scene_data(spec: SweepSpec, case: FlightCase) -> dict[str, Any]:
     """The scene (YAML-shaped data) flight ``case`` flies; floats round-trip exactly through YAML."""
     scene = nominal_scene(spec)
-    data = _raw(spec)
+    data = scene_data(spec)
     data["name"] = f"{scene.name}-sweep-{spec.seed}-{case.index}"
     data["aliases"] = []
     y = dispersed_initial_state(scene, case)

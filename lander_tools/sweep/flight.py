@@ -68,7 +68,9 @@ class FlightResult:
 _CONTROLLERS: dict[tuple[str, str, str], Any] = {}
 
 
-def _controller(spec: SweepSpec, ci: int, vehicle: Any) -> Any:
+def case_controller(spec: SweepSpec, ci: int, vehicle: Any) -> Any:
+    """The sweep's controller number ``ci`` for ``vehicle``, freshly reset (designed once per process
+    and scene: designing costs far more than a short flight, and is the same for every flight)."""
     choice = spec.controllers[ci]
     key = (spec.scene, choice.name, repr(sorted(choice.params.items())))
     ctrl = _CONTROLLERS.get(key)
@@ -132,7 +134,7 @@ def fly_case(
 
     scene0 = nominal_scene(spec)
     case = draw_case(spec, index, scene0.vehicle.n_thrusters)
-    ctrl = _controller(spec, controller_index, scene0.vehicle)
+    ctrl = case_controller(spec, controller_index, scene0.vehicle)
     sim = Simulation(flown_scene(spec, case))
     n_sub, period = control_period(spec, sim.dt)
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
@@ -191,7 +193,7 @@ def fly_case(
             alts.append(h)
             thr_log.append(sim.throttles)  # as applied over the period: a failed thruster shows 0
         if _phase_name(sim) != "FLYING":
-            touchdown_speed, touchdown = _touchdown_speed(sim, v_before)
+            touchdown_speed, touchdown = touchdown_speed_of(sim, v_before)
 
     fuel_end = float(sim.state().fuel) if terminal != "diverged" else math.nan
     optimum = balanced = math.nan
@@ -297,7 +299,7 @@ def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samp
     }
 
 
-def _touchdown_speed(sim: Any, v_before: np.ndarray) -> tuple[float, dict[str, Any]]:
+def touchdown_speed_of(sim: Any, v_before: np.ndarray) -> tuple[float, dict[str, Any]]:
     """Impact speed [m/s] ``sqrt(descent_rate^2 + ground_speed^2)`` from the simulation's
     landed/hard-landing/crashed event (interpolated to the impact instant), with the event's
     touchdown figures and classification; if absent, the speed at the start of the control period
@@ -364,5 +366,5 @@ def preflight(spec: SweepSpec) -> None:
     scene = nominal_scene(spec)
     flown_scene(spec, draw_case(spec, 0, scene.vehicle.n_thrusters))
     for ci in range(len(spec.controllers)):
-        _controller(spec, ci, scene.vehicle)
+        case_controller(spec, ci, scene.vehicle)
     _steps_per_control(spec, scene.dt)

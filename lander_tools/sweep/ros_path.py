@@ -149,11 +149,11 @@ def row_from_bag(spec: SweepSpec, controller_index: int, index: int, bag_path: P
             # so evaluating it on the recorded state gives exactly the flag it reported.
             from lander_autopilot.controllers.base import Demand
             from lander_sim.physics.state import StateView
-            from lander_tools.sweep.flight import _controller
+            from lander_tools.sweep.flight import case_controller
 
             j = last[min(last)]
             st = StateView(0.0, f.r_W[j], f.v_W[j], f.q[j], f.euler[j], f.omega_B[j], float(f.fuel[j]))
-            by_k[0] = bool(_controller(spec, controller_index, scene0.vehicle).update(0.0, st, Demand(altitude=before)).saturated)
+            by_k[0] = bool(case_controller(spec, controller_index, scene0.vehicle).update(0.0, st, Demand(altitude=before)).saturated)
         sat = sum(1 for k, s in by_k.items() if s and k * period < t_last - 1e-9)
     touchdown = math.nan
     figures: dict[str, Any] = {}

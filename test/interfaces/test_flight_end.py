@@ -21,7 +21,7 @@ def test_the_values_carry_the_counts_and_the_lockstep_timeouts_and_decode_back()
 
 def test_an_event_recorded_before_the_timeout_count_decodes_with_none() -> None:
     counts = {t: 5 for t in COUNTED_TOPICS}
-    old = [2.0, 0.0] + [5.0] * len(COUNTED_TOPICS)  # the layout of bags recorded before stop 33
+    old = [2.0, 0.0] + [5.0] * len(COUNTED_TOPICS)  # the older layout: no lockstep-timeout count
     assert FlightEnd.from_values(old) == FlightEnd(2.0, "time-limit", counts, 0)
 
 

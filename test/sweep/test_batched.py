@@ -89,11 +89,11 @@ def test_the_compiled_loop_on_threads_gives_the_same_rows(canted):
 
 
 def test_gust_normals_are_the_numbers_the_simulation_draws(canted):
-    fl = batched._setup(canted, 3, 4)
+    fl = batched.setup_flight(canted, 3, 4)
     g = fl.sim.gusts
     assert g is not None
     n = 50
-    packed = batched._pack([fl], n)
+    packed = batched.pack_flights([fl], n)
     seq = np.empty((n + 1, 3))
     seq[0] = packed["gust_g0"][0]
     for k in range(n):  # the kernel's recurrence
@@ -134,14 +134,14 @@ def test_fast_set_up_packs_the_numbers_the_flights_simulation_holds(spec_data):
     parameters, thrust, initial state, mean wind, gust process and normals, failure steps and
     demands that building each flight's scene and Simulation gives."""
     spec = parse_spec(spec_data, spec_data["name"])
-    tpl = batched._template(spec)
+    tpl = batched.template_of(spec)
     assert tpl.why_not is None
     idx = range(spec.flights)
-    fast = [batched._fast_setup(spec, i, tpl) for i in idx]
-    ref = [batched._setup(spec, i, 4) for i in idx]
+    fast = [batched.setup_flight_fast(spec, i, tpl) for i in idx]
+    ref = [batched.setup_flight(spec, i, 4) for i in idx]
     assert all(f.sim is None for f in fast)
     n = 120
-    a, b = batched._pack(fast, n, tpl), batched._pack(ref, n)
+    a, b = batched.pack_flights(fast, n, tpl), batched.pack_flights(ref, n)
     assert a.keys() == b.keys()
     for k in a:
         assert a[k].dtype == b[k].dtype and a[k].shape == b[k].shape, k
@@ -187,9 +187,9 @@ def test_a_fast_set_up_that_disagrees_falls_back_to_the_reference_set_up(canted,
     """The per-chunk guard: if the fast set-up stopped reproducing the Simulation (e.g. a new
     dispersion it does not know), the chunk is set up by building each flight's Simulation."""
     ref = batched.fly_chunk(canted, range(4), fast_setup=False)
-    tpl = batched._template(canted)
-    assert batched._agrees(canted, batched._fast_setup(canted, 0, tpl))
-    good = batched._Template.values
+    tpl = batched.template_of(canted)
+    assert batched.fast_setup_agrees(canted, batched.setup_flight_fast(canted, 0, tpl))
+    good = batched.SetupTemplate.values
 
     def off(self, spec, case):
         v = good(self, spec, case)
@@ -197,6 +197,6 @@ def test_a_fast_set_up_that_disagrees_falls_back_to_the_reference_set_up(canted,
         v["kparams"][7] *= 1.0 + 1e-12  # the dry mass, one part in 1e12 off
         return v
 
-    monkeypatch.setattr(batched._Template, "values", off)
-    assert not batched._agrees(canted, batched._fast_setup(canted, 0, tpl))
+    monkeypatch.setattr(batched.SetupTemplate, "values", off)
+    assert not batched.fast_setup_agrees(canted, batched.setup_flight_fast(canted, 0, tpl))
     assert same_rows(batched.fly_chunk(canted, range(4)), ref)

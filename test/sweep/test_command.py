@@ -69,7 +69,7 @@ def test_through_ros_count_is_checked(tmp_path, capsys):
 
 
 def test_sweep_without_out_writes_into_a_git_ignored_folder_of_the_working_directory(tmp_path, monkeypatch, capsys):
-    # Issue 17 item 7: the old default, sweep-out/, landed in the repository unignored.
+    # A sweep run from the checkout without --out must leave nothing that git would offer to commit.
     import subprocess
     from pathlib import Path
 

@@ -187,11 +187,11 @@ def test_the_fast_set_up_of_the_batched_core_reproduces_the_new_dispersions():
     data = {**HOLD, "flights": 4, "end": {"duration": 5.0, "hover_window": 1.0},
             "dispersions": {k: NEW[k] for k in ("orbit_altitude", "density_error", "thruster_cant_error")}}
     spec = parse_spec(data, "fast")
-    tpl = batched._template(spec)
+    tpl = batched.template_of(spec)
     assert tpl.why_not is None
-    fast = [batched._fast_setup(spec, i, tpl) for i in range(4)]
-    ref = [batched._setup(spec, i, 4) for i in range(4)]
-    a, b = batched._pack(fast, 10, tpl), batched._pack(ref, 10)
+    fast = [batched.setup_flight_fast(spec, i, tpl) for i in range(4)]
+    ref = [batched.setup_flight(spec, i, 4) for i in range(4)]
+    a, b = batched.pack_flights(fast, 10, tpl), batched.pack_flights(ref, 10)
     for k in b:
         assert np.ascontiguousarray(a[k]).tobytes() == np.ascontiguousarray(b[k]).tobytes(), k
 

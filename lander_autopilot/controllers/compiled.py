@@ -187,8 +187,9 @@ def _wrap(a):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def quat_to_euler_zxz(s, a, b, c, out):  # pragma: no cover - compiled
-    """ZXZ angles of a unit quaternion into ``out`` (as ``rotation.quat_to_euler``: eq 13, then the inverse of eq 3)."""
+def quat_to_euler_zxz(s, a, b, c):  # pragma: no cover - compiled
+    """ZXZ angles ``(phi, theta, psi)`` of a unit quaternion (as ``rotation.quat_to_euler``: eq 13,
+    then the inverse of eq 3), returned as scalars so the law keeps them in registers."""
     r00 = s * s + a * a - b * b - c * c
     r01 = 2.0 * (a * b + s * c)
     r02 = 2.0 * (a * c - s * b)
@@ -197,13 +198,10 @@ def quat_to_euler_zxz(s, a, b, c, out):  # pragma: no cover - compiled
     r21 = 2.0 * (b * c - s * a)
     r22 = s * s - a * a - b * b + c * c
     st = math.hypot(r20, r21)
-    out[1] = math.atan2(st, r22)
+    theta = math.atan2(st, r22)
     if st > 1e-12:
-        out[0] = math.atan2(r20, -r21)
-        out[2] = math.atan2(r02, r12)
-    else:
-        out[0] = math.atan2(r01, r00)
-        out[2] = 0.0
+        return math.atan2(r20, -r21), theta, math.atan2(r02, r12)
+    return math.atan2(r01, r00), theta, 0.0
 
 
 @njit(cache=True)
@@ -244,10 +242,10 @@ def law_update(params, K, law_state, t, y, demand, u, e):  # pragma: no cover - 
     att_kind = int(params[L_ATT])
     if att_kind != 0:
         if att_kind == 1:
-            quat_to_euler_zxz(y[6], y[7], y[8], y[9], e)
-            e[0] = _wrap(e[0] - demand[D_E0])
-            e[1] = e[1] - demand[D_E0 + 1]
-            e[2] = _wrap(e[2] - demand[D_E0 + 2])
+            phi, theta, psi = quat_to_euler_zxz(y[6], y[7], y[8], y[9])
+            e0 = _wrap(phi - demand[D_E0])
+            e1 = theta - demand[D_E0 + 1]
+            e2 = _wrap(psi - demand[D_E0 + 2])
         else:
             c0, c1, c2, c3 = demand[D_QC0], demand[D_QC0 + 1], demand[D_QC0 + 2], demand[D_QC0 + 3]
             s2, x2, y2, z2 = y[6], y[7], y[8], y[9]
@@ -256,17 +254,16 @@ def law_update(params, K, law_state, t, y, demand, u, e):  # pragma: no cover - 
             qy = c0 * y2 + s2 * c2 + c3 * x2 - c1 * z2
             qz = c0 * z2 + s2 * c3 + c1 * y2 - c2 * x2
             k = 2.0 if qs >= 0.0 else -2.0
-            e[0] = k * qx
-            e[1] = k * qy
-            e[2] = k * qz
-        e[3] = y[10] - demand[D_W0]
-        e[4] = y[11] - demand[D_W0 + 1]
-        e[5] = y[12] - demand[D_W0 + 2]
+            e0 = k * qx
+            e1 = k * qy
+            e2 = k * qz
+        # The error vector in registers (a tuple): ``e`` stays untouched scratch.
+        ev = (e0, e1, e2, y[10] - demand[D_W0], y[11] - demand[D_W0 + 1], y[12] - demand[D_W0 + 2])
         scale = (params[L_DRY] + fuel) / params[L_ATT_MASS] if params[L_ATT_SCALED] != 0.0 else 1.0
         for i in range(n):
             acc = 0.0
             for j in range(6):
-                acc += K[i, j] * e[j]
+                acc += K[i, j] * ev[j]
             u[i] = u[i] + (-scale) * acc
     mixed = False
     lo = u[0]

@@ -39,6 +39,9 @@ except ImportError:  # pragma: no cover - numba is a requirement of this path
 
 __all__ = ["HAVE_NUMBA", "TERM_DIVERGED", "TERM_ERROR", "TERM_OK", "TERM_TOUCHDOWN", "fly_flights"]
 
+#: A physics step no flight reaches (no failure pending).
+_NEVER = 1 << 62
+
 #: How a flight of the kernel ended.
 TERM_OK, TERM_TOUCHDOWN, TERM_DIVERGED, TERM_ERROR = 0, 1, 2, 3
 
@@ -65,6 +68,7 @@ def _fly_one(f, y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, g
     kp, fo, to, bu = kparams[f], force[f], torque[f], burn[f]  # views hoisted out of the loop
     db, da = d_before[f], d_after[f]
     fuel_out = False
+    next_fail = 0  # the first physics step at which a thruster failure may be due
     flying = True
     kstep = 0
     draw = 0
@@ -115,10 +119,14 @@ def _fly_one(f, y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, g
             if not flying:
                 kstep += n_sub - sub
                 break
-            for q in range(fail_step.shape[1]):
-                if fail_step[f, q] >= 0 and fail_step[f, q] <= kstep and not failed[fail_thruster[f, q]]:
-                    failed[fail_thruster[f, q]] = True
-                    thr[fail_thruster[f, q]] = 0.0
+            if kstep >= next_fail:  # a failure may be due: take the due ones, find the next
+                next_fail = _NEVER
+                for q in range(fail_step.shape[1]):
+                    if fail_step[f, q] >= 0 and fail_step[f, q] <= kstep and not failed[fail_thruster[f, q]]:
+                        failed[fail_thruster[f, q]] = True
+                        thr[fail_thruster[f, q]] = 0.0
+                    if fail_step[f, q] > kstep and not failed[fail_thruster[f, q]]:
+                        next_fail = min(next_fail, fail_step[f, q])
             for j in range(3):
                 wind[j] = mean_wind[f, j] + g[j]
             for j in range(14):

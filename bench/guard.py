@@ -5,14 +5,16 @@ Run it before resolving any change to ``lander_sim/fast/``, the compiled control
 
     ./dev bench guard --against origin/main [--runs 5] [--figures kernel,closed_loop] [--quick]
 
-The revision's tree is exported (``git archive``) into a temporary directory. Each run is one fresh
+The revision's tree is exported (``git archive``) into a temporary directory, and so is the working
+tree as it is (tracked and untracked files, edits included), so both are fresh directories that
+differ in their code only. Each run is one fresh
 interpreter per tree, the two trees alternating (A B, then B A, ...), every interpreter with the
 tree's directory first on ``PYTHONPATH`` and the tree's packages imported from it before anything
 else (checked: every ``lander_*`` module's file must lie in that tree). Both trees are timed by the
 same probes, the functions of *this* tree's benchmarks (bench/speed.py, bench/ceiling.py,
 bench/ceiling_loop.py, bench/closed_loop.py, bench/integrators.py), so only the product code differs. numba caches its
 machine code beside each source file, so the two trees never share cache entries; the first run of
-the exported tree compiles, outside the timed windows. The table gives, per figure, the median of
+each exported tree compiles, outside the timed windows. The table gives, per figure, the median of
 each tree over the runs, the ratio of the medians A/B and the range of the run-by-run ratios.
 ``ceiling`` and ``loop_ceiling`` are the fused loops of bench/ceiling.py and bench/ceiling_loop.py,
 the same code in both trees: their ratios show what the machine's noise alone does to a ratio; the
@@ -27,6 +29,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -230,6 +233,20 @@ def export_revision(rev: str, repo: Path, dest: Path) -> str:
     return full
 
 
+def export_working_tree(repo: Path, dest: Path) -> None:
+    """Copy the working tree's files as they are now (tracked and untracked, not ignored, edits
+    included) into ``dest``: A then lives in a fresh directory as B does, so the two trees differ
+    in their code only (the checkout itself, with its .venv and caches, timed measurably slower in
+    the batched sweep's set-up than an export of the very same commit)."""
+    names = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=repo,
+                           capture_output=True, check=True).stdout.decode().split("\0")
+    for name in filter(None, names):
+        src = repo / name
+        if src.is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / name)
+
+
 def parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p = C.parser(__doc__.splitlines()[0])
     p.add_argument("--against", metavar="REV", required=True, help="git revision to time against (B)")
@@ -245,12 +262,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     unknown = [k for k in keys if k not in PROBES]
     if unknown or args.runs < 1:
         raise SystemExit(f"guard: unknown figure(s) {unknown} (choose from {', '.join(PROBES)}) or --runs < 1")
-    tree_a = C.ROOT
     with tempfile.TemporaryDirectory(prefix="lander-guard-") as tmp:
-        tree_b = Path(tmp) / "tree"
+        tree_a, tree_b = Path(tmp) / "working", Path(tmp) / "tree"
+        tree_a.mkdir()
         tree_b.mkdir()
-        full = export_revision(args.against, tree_a, tree_b)
-        name_a, name_b = f"working tree {tree_a}", f"{args.against} ({full[:10]})"
+        export_working_tree(C.ROOT, tree_a)
+        full = export_revision(args.against, C.ROOT, tree_b)
+        name_a, name_b = f"working tree {C.ROOT}", f"{args.against} ({full[:10]})"
         runs: dict[str, dict[str, list[float]]] = {"A": {k: [] for k in keys}, "B": {k: [] for k in keys}}
         errors: dict[str, dict[str, str]] = {"A": {}, "B": {}}
         kernel_files: dict[str, object] = {}

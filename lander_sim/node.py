@@ -70,6 +70,7 @@ from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOu
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
+from lander_sim.ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.scenes import SceneError
 
 try:  # TF only on a full ROS 2 install (tf2_ros is not on PyPI).
@@ -145,8 +146,11 @@ class SimNode(Node):
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
 
         c = self._counted
+        # A launched flight's simulator takes throttles only from the flight's nodes (lander_sim.ros.strangers).
+        self._guard = InputGuard(bool(self._param("flight_id")), tuple(self._param("flight_nodes").split()))
         self._inputs = (
-            self.create_subscription(ThrottleCommand, "/lander/throttle", c(self._on_throttle), _INPUT_QOS),
+            self.create_subscription(ThrottleCommand, "/lander/throttle", with_message_info(c(self._on_throttle)),
+                                     _INPUT_QOS),
             self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS),
         )
 
@@ -433,7 +437,14 @@ class SimNode(Node):
         self.get_logger().warning(f"rejected {kind} (#{count}): {detail}", throttle_duration_sec=1.0)
         self._publish_event(FlightEvent.INPUT_REJECTED, f"{kind}: {detail}", [float(count)])
 
-    def _on_throttle(self, msg: ThrottleCommand) -> None:
+    def _on_throttle(self, msg: ThrottleCommand, info=None) -> None:
+        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/throttle"))
+        if refusal is not None:  # a stranger's: announced once, then counted
+            if refusal:
+                self._reject(STRANGER_KIND, refusal)
+            else:
+                self.health.reject(STRANGER_KIND)
+            return
         values = msg.throttles
         try:
             self.sim.set_throttles(values)

@@ -36,6 +36,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="serve the flight live: Foxglove server and student page, URLs printed (docs/live.md)")
     parser.add_argument("--port", type=int, default=8765, metavar="P",
                         help="with --live: Foxglove WebSocket port (default 8765; student page on P + 1)")
+    parser.add_argument("--domain", type=int, metavar="ID",
+                        help="ROS domain of the flight (default: ROS_DOMAIN_ID if set, else one no other flight on "
+                             "this machine uses; printed in the first line, and the lander verbs find it)")
+    parser.add_argument("--network", action="store_true",
+                        help="discover over the network (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET); default: this machine "
+                             "only (LOCALHOST) unless ROS_AUTOMATIC_DISCOVERY_RANGE is set (docs/flying.md)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,9 +81,14 @@ def run(args: argparse.Namespace) -> int:
             plan.lockstep = args.lockstep
         if args.live:
             plan.live = args.port
+        if args.domain is not None:
+            from lander_tools.fly.domain import parse_domain
+
+            plan.domain = parse_domain(str(args.domain), "--domain")
+        plan.network = plan.network or args.network
         plan.__post_init__()
         check_plan(plan)  # every name and file, before anything starts
-    except (LaunchError, ScriptError) as exc:
+    except (LaunchError, ScriptError, ValueError) as exc:
         print(f"lander fly: {exc}", file=sys.stderr)
         return EXIT_ERROR
     progress = Progress(enabled=False if args.no_progress else None, total=plan.duration)

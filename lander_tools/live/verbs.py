@@ -38,6 +38,11 @@ def run_verb(verb: str, action: Callable[[FlightLink], Outcome], needs: str = SI
     The line is printed before the link's ROS teardown, and in a ``lander`` process that teardown
     is bounded (:func:`_bounded_close`): Fast DDS can deadlock destroying a participant while it
     removes a remote one (seen in CI: a verb hung in ``destroy_node`` as other verbs exited)."""
+    from lander_tools.fly.domain import attach_env
+
+    note = attach_env()  # the user's own flight's domain (its run file), this machine only by default
+    if note:
+        print(f"lander {verb}: {note}", file=sys.stderr, flush=True)
     link = FlightLink(f"lander_{verb}")
     try:
         try:

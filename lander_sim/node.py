@@ -70,7 +70,7 @@ from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOu
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
-from lander_sim.ros.strangers import STRANGER_KIND, InputGuard, with_message_info
+from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.scenes import SceneError
 
 try:  # TF only on a full ROS 2 install (tf2_ros is not on PyPI).
@@ -146,7 +146,7 @@ class SimNode(Node):
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
 
         c = self._counted
-        # A launched flight's simulator takes throttles only from the flight's nodes (lander_sim.ros.strangers).
+        # A launched flight's simulator takes throttles only from the flight's nodes (lander_ros.strangers).
         self._guard = InputGuard(bool(self._param("flight_id")), tuple(self._param("flight_nodes").split()))
         self._inputs = (
             self.create_subscription(ThrottleCommand, "/lander/throttle", with_message_info(c(self._on_throttle)),

@@ -113,7 +113,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "flight_id", "", "The launched flight this simulator belongs to (lander fly sets it); non-empty: "
         "/lander/throttle is taken only from flight_nodes and the lander verbs, a stranger is refused and counted "
-        "(lander_sim.ros.strangers); empty: from anyone.", string, True,
+        "(lander_ros.strangers); empty: from anyone.", string, True,
     ),
     ParamSpec(
         "flight_nodes", "/autopilot /lander_fly", "With a flight_id: the flight's own nodes, one throttle "

@@ -105,7 +105,7 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
 
     Each node gets one parameters file: its section of the user's ``--params`` file
     (:func:`read_params_file`), then the flight's settings, which win. ``flight_id``: the sim then
-    takes throttles only from the flight's own nodes (lander_sim.ros.strangers)."""
+    takes throttles only from the flight's own nodes (lander_ros.strangers)."""
     user = read_params_file(plan.params_file) if plan.params_file is not None else {SIM_NODE: {}, AUTOPILOT_NODE: {}}
     sim_params = dict(user[SIM_NODE])
     sim_params.update({
@@ -132,6 +132,8 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
     if controller is not None:
         ap_params: dict[str, Any] = dict(user[AUTOPILOT_NODE])
         ap_params.update({"scene": plan.scene, "controller": controller, "use_sim_time": True})
+        if flight_id:
+            ap_params["flight_id"] = flight_id
         if plan.controller_params:
             ap_params["controller_params"] = yaml.safe_dump(
                 dict(plan.controller_params), default_flow_style=True, sort_keys=True

@@ -20,7 +20,7 @@ from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, Thr
 from lander_interfaces.srv import Reset, SwitchController
 from lander_ros.flight_span import FlightEnd
 from lander_ros.stamps import stamp_to_seconds
-from lander_sim.ros.strangers import STRANGER_KIND
+from lander_ros.strangers import STRANGER_KIND
 from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
 from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
 
@@ -86,7 +86,7 @@ class Supervisor:
         self.touchdown_class = ""  #: safe / hard / crash, from the event's kind
         self.gimbal_locks: list[float] = []  #: sim times [s] of GIMBAL_LOCK events (printed once, counted)
         self.mode_changes: list[float] = []  #: sim times [s] of MODE_CHANGED events (the first MODE_LINES printed)
-        self.strangers: list[str] = []  #: the sim's refusals of strangers' throttles (each stranger once)
+        self.strangers: list[str] = []  #: the sim's refusals of strangers' throttles (one event per stranger)
         self.pending = sorted(plan.timeline, key=lambda a: a.t)
         self.held_throttle: Action | None = None
         self.futures: list[tuple[str, Any]] = []  #: service calls started by apply(), by name
@@ -209,8 +209,7 @@ class Supervisor:
             if len(self.mode_changes) > MODE_LINES:
                 return
         if msg.kind == E.INPUT_REJECTED and str(msg.detail).startswith(STRANGER_KIND + ":"):
-            self.strangers.append(str(msg.detail))  # the sim announces each stranger once
-            self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
+            self.strangers.append(str(msg.detail))  # announced once per stranger (the sim's own log line)
         if msg.kind in PRINTED_EVENTS:
             self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
 

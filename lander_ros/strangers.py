@@ -14,12 +14,18 @@ another flight's autopilot cannot command it).
 
 The sender of a message is its publisher's GID, which rclpy hands to a subscription callback
 taking two arguments (``MessageInfo['publisher_gid']``), and the graph names the node of each
-publisher GID (``Node.get_publishers_info_by_topic``). Residual: a publisher the graph does not
-list yet (the graph is discovered apart from the endpoints' matching, a few ms) is taken until it
-is listed, since refusing it could refuse the flight's own autopilot's first answer.
+publisher GID (``Node.get_publishers_info_by_topic``). The graph is discovered apart from the
+endpoints' matching, so a message can come before the graph lists its publisher: until one of the
+flight's own publishers has been heard such a message is taken (it may be the autopilot's first
+answer), afterwards it is refused and counted until the graph names its sender. Residual: a verb's
+first message, sent the moment it is matched, can be refused that way.
 
-Without a ``flight_id`` (a simulator run by hand or by ``ros2 launch``) every publisher is taken,
-as docs/sim_node.md describes.
+The autopilot of a launched flight (its ``flight_id`` set) takes ``/lander/state`` the same way,
+from its flight's ``/lander_sim`` only (the first heard), so another flight's simulator in the
+domain does not steer it either.
+
+Without a ``flight_id`` (nodes run by hand or by ``ros2 launch``) every publisher is taken, as
+docs/sim_node.md and docs/autopilot_node.md describe.
 """
 from __future__ import annotations
 
@@ -58,6 +64,7 @@ class InputGuard:
     active: bool
     flight_nodes: tuple[str, ...] = FLIGHT_NODES
     topic: str = "/lander/throttle"
+    verbs: bool = True  #: the lander verbs' nodes (``/lander_*``) are taken too
     #: node name -> GID of the publisher owning it (the first heard in the flight)
     owners: dict[str, bytes] = field(default_factory=dict)
     #: GID -> its verdict once the graph named it: None taken, else the node name of the stranger
@@ -80,7 +87,10 @@ class InputGuard:
         names = {bytes(e.endpoint_gid): _full_name(e.node_namespace, e.node_name) for e in graph()}
         node = names.get(gid)
         if node is None:
-            return None  # not in the graph yet: taken until it is (module docstring, residual)
+            # Not in the graph yet (module docstring): before the flight's own publisher is known it
+            # may be that one, and is taken; after, it is a newcomer, refused (counted, not
+            # announced) until the graph names it.
+            return "" if self.owners else None
         stranger = self._judge(gid, node, names)
         self.verdicts[gid] = stranger
         if stranger is None:
@@ -95,14 +105,15 @@ class InputGuard:
                 self.owners[node] = gid  # the first heard, or the owner left the graph
                 return None
             return node
-        if node.startswith(VERB_PREFIX) and node not in FLIGHT_NODES:
+        if self.verbs and node.startswith(VERB_PREFIX) and node not in FLIGHT_NODES:
             return None
         return node
 
     def _why(self, node: str) -> str:
         if node in self.flight_nodes:
             return f"this flight's {node} is another publisher: a second flight runs in this ROS domain"
-        return (f"only {', '.join(self.flight_nodes)} and the lander verbs ({VERB_PREFIX}*) command this flight")
+        verbs = f" and the lander verbs ({VERB_PREFIX}*)" if self.verbs else ""
+        return f"only {', '.join(self.flight_nodes)}{verbs} publish it in this flight"
 
 
 def _full_name(namespace: str, name: str) -> str:

@@ -55,6 +55,7 @@ from lander_ros.flight_span import (
     parse_end_on,
 )
 from lander_ros.params import check_overrides
+from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import (
@@ -70,7 +71,6 @@ from lander_sim.ros.gate import Event, Gate, GateSettings, Mode, Publish, TickOu
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
-from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.scenes import SceneError
 
 try:  # TF only on a full ROS 2 install (tf2_ros is not on PyPI).

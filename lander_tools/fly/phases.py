@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import rclpy
+from rcl_interfaces.srv import GetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
-from rcl_interfaces.srv import GetParameters
 from std_srvs.srv import Trigger
 
 from lander_interfaces.srv import Reset

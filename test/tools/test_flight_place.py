@@ -5,7 +5,6 @@ count (lander_ros.flight_span)."""
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 

@@ -80,6 +80,10 @@ from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
 _STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: The same in a launched flight, whose autopilot refuses other simulators' states: one sample of
+#: history is shared by every writer, so a stranger's state would push out the flight's own, which a
+#: lockstep simulator then waits for in vain. The flight's simulator has one state out at a time.
+_FLIGHT_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: Demand altitude input: only the newest demand matters, a few queued are plenty.
 _DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
@@ -135,7 +139,7 @@ class AutopilotNode(Node):
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
         self._sub_state = self.create_subscription(LanderState, "/lander/state", with_message_info(self._on_state),
-                                                   _STATE_QOS)
+                                                   _FLIGHT_STATE_QOS if self._guard.active else _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
         # "Land": switch to the landing law with demand altitude 0 (docs/autopilot_node.md).

@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from lander_tools.fly.domain import attach_env
 
-    note = attach_env()  # the user's own flight's domain (its run file), this machine only by default
+    note = attach_env().note  # the user's own flight's domain (its run file), this machine only by default
     if note:
         print(f"lander live: {note}", file=sys.stderr, flush=True)
     from lander_tools.live.bridge import serve

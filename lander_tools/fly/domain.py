@@ -206,24 +206,34 @@ def running_flights() -> list[RunningFlight]:
     return sorted(out, key=lambda f: f.started)
 
 
-def attach_env(environ: Any = None) -> str | None:
+@dataclass(frozen=True)
+class Attachment:
+    """What :func:`attach_env` found: the user's flight in the domain the verb now uses (None: no
+    run file says one runs there) and a line to show when the choice needs saying."""
+
+    flight: RunningFlight | None
+    note: str | None = None
+
+
+def attach_env(environ: Any = None) -> Attachment:
     """Set ``environ`` (default os.environ) for a verb before it starts ROS: the user's own
     ``ROS_DOMAIN_ID`` is kept; else the newest of the user's running flights' domain and discovery
-    range; discovery ``LOCALHOST`` unless the user set it. Returns a line to show when the choice
-    needs saying (several flights running), else None."""
+    range; discovery ``LOCALHOST`` unless the user set it."""
     environ = os.environ if environ is None else environ
     note = None
-    if not environ.get(DOMAIN_VAR, "").strip():
-        flights = running_flights()
-        if flights:
-            newest = flights[-1]
-            environ[DOMAIN_VAR] = str(newest.domain)
-            if not environ.get(RANGE_VAR, "").strip():
-                environ[RANGE_VAR] = newest.discovery
-            if len(flights) > 1:
-                others = ", ".join(f"{f.scene!r} in {f.domain}" for f in flights[:-1])
-                note = (f"{len(flights)} of your flights are running: this talks to the newest, {newest.scene!r} in "
-                        f"{DOMAIN_VAR}={newest.domain} (others: {others}; set {DOMAIN_VAR} to choose)")
+    flights = running_flights()
+    mine: RunningFlight | None = None
+    if environ.get(DOMAIN_VAR, "").strip():
+        mine = next((f for f in reversed(flights) if str(f.domain) == environ[DOMAIN_VAR].strip()), None)
+    elif flights:
+        mine = flights[-1]
+        environ[DOMAIN_VAR] = str(mine.domain)
+        if not environ.get(RANGE_VAR, "").strip():
+            environ[RANGE_VAR] = mine.discovery
+        if len(flights) > 1:
+            others = ", ".join(f"{f.scene!r} in {f.domain}" for f in flights[:-1])
+            note = (f"{len(flights)} of your flights are running: this talks to the newest, {mine.scene!r} in "
+                    f"{DOMAIN_VAR}={mine.domain} (others: {others}; set {DOMAIN_VAR} to choose)")
     if not environ.get(RANGE_VAR, "").strip():
         environ[RANGE_VAR] = LOCALHOST
-    return note
+    return Attachment(mine, note)

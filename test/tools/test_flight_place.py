@@ -136,20 +136,24 @@ def test_a_domain_a_test_run_holds_is_never_picked(own_locks: Path) -> None:
 
 def test_the_verbs_find_the_users_newest_flight_and_keep_an_explicit_domain(own_locks: Path) -> None:
     env: dict[str, str] = {}
-    assert place.attach_env(env) is None and env == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    assert place.attach_env(env) == place.Attachment(None) and env == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     first = place.write_run_file(place.FlightPlace(11, "LOCALHOST", "picked", "default"), "hover")
     env = {}
-    assert place.attach_env(env) is None and env["ROS_DOMAIN_ID"] == "11"
+    found = place.attach_env(env)
+    assert found.note is None and found.flight and found.flight.domain == 11 and env["ROS_DOMAIN_ID"] == "11"
     # A second flight, started later: the newest.
     d = json.loads(first.read_text())
     d.update(domain=12, scene="landing", started=d["started"] + 1.0)
     second = first.with_name("flight-1.json")
     second.write_text(json.dumps(d))
     env = {}
-    note = place.attach_env(env)
+    note = place.attach_env(env).note
     assert env["ROS_DOMAIN_ID"] == "12" and note and "'landing' in ROS_DOMAIN_ID=12" in note and "'hover' in 11" in note
     env = {"ROS_DOMAIN_ID": "3", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
-    assert place.attach_env(env) is None and env == {"ROS_DOMAIN_ID": "3", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
+    assert place.attach_env(env) == place.Attachment(None)  # no flight of the user's in domain 3
+    assert env == {"ROS_DOMAIN_ID": "3", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
+    env = {"ROS_DOMAIN_ID": "11"}
+    assert (found := place.attach_env(env)).flight and found.flight.scene == "hover"  # the user's own, named
     # A launcher that died leaves its file: it is not a running flight.
     d["pid"] = 2**22 + 12345  # above Linux's pid_max default: no such process
     second.write_text(json.dumps(d))

@@ -8,9 +8,10 @@ simulator joins mid-way says so in one line, its autopilot does not answer the s
 (its throttles are those of the flight flown alone) and its bag check names the extra messages;
 a flight started in a domain where another flight runs is refused and leaves no bag.
 
-Every flight here is the same short hover (hover-canted, 20 s of sim time, lockstep) at twice
-real time, so there is time to act while it flies; the simulator's lockstep_timeout is raised to
-20 s, so a loaded machine cannot make it advance without the autopilot's answer.
+Every flight here is the same short hover (hover-canted, 20 s of sim time, lockstep), flown at 2x
+or 4x real time where the test acts while it flies (flat out for the reference); the simulator's
+lockstep_timeout is raised to 20 s, so a loaded machine cannot make it advance without the
+autopilot's answer, and the flight is the same at any speed.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from rosbags.rosbag2 import Reader
@@ -32,8 +34,10 @@ import rosutil
 REPO = Path(__file__).resolve().parents[2]
 DURATION = 20.0
 STATES = 201  # t = 0 to 20 s at the scene's 10 Hz control rate
-#: The flight's own topics: what must be byte for byte the same in any domain, alone or not.
+#: The flight's own topics: what must be byte for byte the same in any domain, alone or not
+#: (/lander/events too, but for the wall-paced counts its FLIGHT_ENDED carries: flight_events).
 FLIGHT_TOPICS = ("/clock", "/lander/state", "/lander/throttle", "/lander/events")
+SAME_BYTES = ("/clock", "/lander/state", "/lander/throttle")
 LAUNCH_TIMEOUT = 120.0  # a flight's start-up and end on two loaded cores; every wait ends at its event
 
 
@@ -122,6 +126,25 @@ def raw_messages(bag: Path) -> dict[str, list[bytes]]:
     return out
 
 
+def flight_events(bag: Path) -> list[tuple[int, str, list[float]]]:
+    """The flight's events, but for what FLIGHT_ENDED counts of the wall-paced topics (/diagnostics,
+    /lander/markers: published once a wall second, so their counts depend on the flight's speed)."""
+    from lander_interfaces.msg import FlightEvent
+    from lander_ros.flight_span import COUNTED_TOPICS
+    from lander_tools.bagio import read_bag
+
+    wall = [2 + COUNTED_TOPICS.index(t) for t in ("/diagnostics", "/lander/markers")]
+    out = []
+    for m in read_bag(bag, ["/lander/events"]).messages("/lander/events"):
+        values = [float(v) for v in m.values]
+        if m.kind == FlightEvent.FLIGHT_ENDED:
+            values = [v for i, v in enumerate(values) if i not in wall]
+            out.append((int(m.kind), "", values))
+        else:
+            out.append((int(m.kind), str(m.detail), values))
+    return out
+
+
 def sim_rejections(bag: Path) -> dict[str, int]:
     """The simulator's rejection counters in its last /diagnostics of the flight."""
     from lander_ros.flight_span import sim_report
@@ -133,16 +156,17 @@ def sim_rejections(bag: Path) -> dict[str, int]:
 
 
 @pytest.fixture(scope="module")
-def alone(tmp_path_factory: pytest.TempPathFactory, params_file: Path) -> dict[str, list[bytes]]:
+def alone(tmp_path_factory: pytest.TempPathFactory, params_file: Path) -> dict[str, Any]:
     """The flight flown alone, in this module's domain: the reference of every other flight here."""
-    fly = Fly(tmp_path_factory.mktemp("alone") / "bag", params_file, flight_env())
+    fly = Fly(tmp_path_factory.mktemp("alone") / "bag", params_file, flight_env(), speed=0.0)
     try:
         rc, out = fly.finish()
     finally:
         fly.kill()
     assert rc == 0 and "complete: every message" in out, out
-    raw = raw_messages(fly.bag)
+    raw: dict[str, Any] = dict(raw_messages(fly.bag))
     assert len(raw["/lander/state"]) == STATES and len(raw["/lander/throttle"]) == STATES, out
+    raw["events"] = flight_events(fly.bag)
     return raw
 
 
@@ -158,17 +182,20 @@ def test_two_flights_started_at_once_run_apart_each_with_its_own_verbs(alone, pa
         for f in flights:
             f.wait_line(r"^\[fly\] scene 'hover-canted'")
         # Each flight's verb, in its own domain; without one, a verb names both and takes the newest.
-        for d in domains:
-            res = subprocess.run([sys.executable, "-m", "lander_tools.cli", "echo", "/lander/state", "--once",
-                                  "--timeout", "60", "--wait", "60"], capture_output=True, text=True, cwd=REPO,
-                                 env=flight_env(ROS_DOMAIN_ID=str(d)), timeout=LAUNCH_TIMEOUT)
-            assert res.returncode == 0 and '"sequence"' in res.stdout, res.stdout + res.stderr
-        res = subprocess.run([sys.executable, "-m", "lander_tools.cli", "topics", "--wait", "60"], capture_output=True,
-                             text=True, cwd=REPO, env=env, timeout=LAUNCH_TIMEOUT)
-        assert res.returncode == 0 and "/lander/state" in res.stdout, res.stdout + res.stderr
+        # All at once (each is a Python process starting ROS: seconds on a loaded machine).
+        verbs = [subprocess.Popen([sys.executable, "-m", "lander_tools.cli", "echo", "/lander/state", "--once",
+                                   "--timeout", "60"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                  cwd=REPO, env=flight_env(ROS_DOMAIN_ID=str(d))) for d in domains]
+        verbs.append(subprocess.Popen([sys.executable, "-m", "lander_tools.cli", "topics"], stdout=subprocess.PIPE,
+                                      stderr=subprocess.PIPE, text=True, cwd=REPO, env=env))
+        answers = [v.communicate(timeout=LAUNCH_TIMEOUT) for v in verbs]
+        for v, (o, e) in zip(verbs[:2], answers[:2]):
+            assert v.returncode == 0 and '"sequence"' in o, o + e
+        (o, e), topics = answers[2], verbs[2]
+        assert topics.returncode == 0 and "/lander/state" in o, o + e
         note = re.search(r"2 of your flights are running: this talks to the newest, 'hover-canted' in "
-                         r"ROS_DOMAIN_ID=(\d+) \(others: 'hover-canted' in (\d+)", res.stderr)
-        assert note and {int(note.group(1)), int(note.group(2))} == set(domains), res.stderr
+                         r"ROS_DOMAIN_ID=(\d+) \(others: 'hover-canted' in (\d+)", e)
+        assert note and {int(note.group(1)), int(note.group(2))} == set(domains), e
         results = [f.finish() for f in flights]
     finally:
         for f in flights:
@@ -176,8 +203,9 @@ def test_two_flights_started_at_once_run_apart_each_with_its_own_verbs(alone, pa
     for (rc, out), f in zip(results, flights):
         assert rc == 0 and "complete: every message" in out and "EXTRA" not in out, out
         raw = raw_messages(f.bag)
-        for topic in FLIGHT_TOPICS:
+        for topic in SAME_BYTES:
             assert raw.get(topic) == alone.get(topic), f"{topic} differs from the flight flown alone:\n{out}"
+        assert flight_events(f.bag) == alone["events"], out
 
 
 def test_a_stranger_publishing_throttles_is_refused_counted_and_reported(alone, params_file: Path, tmp_path: Path,
@@ -190,7 +218,7 @@ def test_a_stranger_publishing_throttles_is_refused_counted_and_reported(alone, 
     states = obs.record("/lander/state", LanderState, depth=1000)
     pub = obs.node.create_publisher(ThrottleCommand, "/lander/throttle", 10)
     assert isinstance(obs.node, Node)
-    fly = Fly(tmp_path / "bag", params_file, flight_env())
+    fly = Fly(tmp_path / "bag", params_file, flight_env(), speed=4.0)
     sent = 0
     try:
         obs.wait_for(lambda: bool(states), LAUNCH_TIMEOUT, "the flight's first state")

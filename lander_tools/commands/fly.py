@@ -3,8 +3,8 @@
 ``SCENE`` may also be a scripted flight (``flights/*.yaml``, see docs/flying.md), which
 brings its own controller, timeline and end condition. Scene, controller and flight names and
 the ``--params`` file are checked before anything starts (one error line, the closest name
-offered). Exit status: 0 landed or time limit, 1 crashed, 2 error, 3 the bag misses messages,
-130 interrupted (see :mod:`lander_tools.fly`).
+offered). Exit status: 0 landed or time limit, 1 crashed, 2 error (also: another flight runs in the
+domain), 3 the bag misses messages or holds another flight's, 130 interrupted (see :mod:`lander_tools.fly`).
 Heavy imports (rclpy) happen in :func:`run`, so ``lander fly --help`` stays fast.
 """
 

@@ -38,6 +38,8 @@ from typing import Any
 FLIGHT_NODES: tuple[str, ...] = ("/autopilot", "/lander_fly")
 #: Prefix of the user's ``lander`` verbs' nodes (``lander_tools.live.link.FlightLink``): taken.
 VERB_PREFIX = "/lander_"
+#: The node name rmw_fastrtps gives an endpoint whose node it does not know yet.
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 #: The rejection kind a stranger's throttles are counted under (the sim's diagnostics).
 STRANGER_KIND = "throttle.stranger"
 
@@ -84,7 +86,10 @@ class InputGuard:
         if gid in self.verdicts:
             stranger = self.verdicts[gid]
             return None if stranger is None else ""
-        names = {bytes(e.endpoint_gid): _full_name(e.node_namespace, e.node_name) for e in graph()}
+        # rmw_fastrtps lists an endpoint as soon as DDS discovered it, under a placeholder name until
+        # its participant's node information has come too: not named yet.
+        names = {bytes(e.endpoint_gid): _full_name(e.node_namespace, e.node_name) for e in graph()
+                 if UNKNOWN_NODE not in e.node_name}
         node = names.get(gid)
         if node is None:
             # Not in the graph yet (module docstring): before the flight's own publisher is known it

@@ -62,6 +62,16 @@ def test_a_publisher_the_graph_does_not_name_yet_is_taken_only_before_the_flight
     assert g.refusal(info(OTHER_AUTOPILOT), graph((AUTOPILOT, "/lander_sim"), (OTHER_AUTOPILOT, "/lander_sim")))
 
 
+def test_an_endpoint_listed_before_its_node_is_known_is_not_judged_by_its_placeholder_name() -> None:
+    g = InputGuard(True)
+    unnamed = lambda: [Endpoint("_NODE_NAME_UNKNOWN_", "_NODE_NAMESPACE_UNKNOWN_", list(AUTOPILOT))]  # noqa: E731
+    assert g.refusal(info(AUTOPILOT), unnamed) is None  # maybe the flight's autopilot: taken, not judged
+    assert g.refusal(info(AUTOPILOT), graph((AUTOPILOT, "/autopilot"))) is None
+    assert g.refusal(info(SCRIPT), lambda: [Endpoint("_NODE_NAME_UNKNOWN_", "_NODE_NAMESPACE_UNKNOWN_",
+                                                     list(SCRIPT))]) == ""  # a newcomer: refused until named
+    assert "/my_script" in (g.refusal(info(SCRIPT), graph((SCRIPT, "/my_script"))) or "")
+
+
 def test_the_owner_of_a_name_may_be_replaced_once_it_left_the_graph() -> None:
     g = InputGuard(True)
     assert g.refusal(info(AUTOPILOT), graph((AUTOPILOT, "/autopilot"))) is None

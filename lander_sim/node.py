@@ -51,6 +51,7 @@ from lander_ros.flight_span import (
     parse_end_on,
 )
 from lander_ros.params import check_overrides
+from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
 from lander_sim.ros.config import (
@@ -144,8 +145,11 @@ class SimNode(Node):
                          self._pub_events, self._pub_diag)
 
         c = self._counted
+        # A launched flight's simulator takes throttles only from the flight's nodes (lander_ros.strangers).
+        self._guard = InputGuard(bool(self._param("flight_id")), tuple(self._param("flight_nodes").split()))
         self._inputs = (
-            self.create_subscription(ThrottleCommand, "/lander/throttle", c(self._on_throttle), _INPUT_QOS),
+            self.create_subscription(ThrottleCommand, "/lander/throttle", with_message_info(c(self._on_throttle)),
+                                     _INPUT_QOS),
             self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS),
         )
 
@@ -420,7 +424,14 @@ class SimNode(Node):
         self.get_logger().warning(f"rejected {kind} (#{count}): {detail}", throttle_duration_sec=1.0)
         self._publish_event(FlightEvent.INPUT_REJECTED, f"{kind}: {detail}", [float(count)])
 
-    def _on_throttle(self, msg: ThrottleCommand) -> None:
+    def _on_throttle(self, msg: ThrottleCommand, info=None) -> None:
+        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/throttle"))
+        if refusal is not None:  # a stranger's: announced once, then counted
+            if refusal:
+                self._reject(STRANGER_KIND, refusal)
+            else:
+                self.health.reject(STRANGER_KIND)
+            return
         values = msg.throttles
         try:
             self.sim.set_throttles(values)

@@ -428,7 +428,7 @@ class SimNode(Node):
         refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/throttle"))
         if refusal is not None:  # a stranger's: announced once, then counted
             if refusal:
-                self._reject(STRANGER_KIND, refusal)
+                self.reject(STRANGER_KIND, refusal)
             else:
                 self.health.reject(STRANGER_KIND)
             return

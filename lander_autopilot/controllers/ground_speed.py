@@ -115,6 +115,10 @@ class GroundSpeedController(SumController):
         """The outer loop's integral of the velocity error, ENU ``(east, north)`` [m] (a copy)."""
         return self._integral.copy()
 
+    def clear_velocity_integral(self) -> None:
+        """Set the outer loop's integral to zero (a law that flies the horizontal loop itself for a while)."""
+        self._integral[:] = 0.0
+
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:

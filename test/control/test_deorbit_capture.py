@@ -77,14 +77,14 @@ def test_braking_limb_runs_on_the_collective_left():
     mass, g = vehicle.mass(40.0), 3.7
     full = law.braking_acceleration(mass, g)
     law.headroom.share = 0.08
-    assert law.braking_acceleration(mass, g) == pytest.approx(law.brake_fraction * (0.92 * law.T_v / mass - g))
+    assert law.braking_acceleration(mass, g) == pytest.approx(law.law.brake_fraction * (0.92 * law.law.T_v / mass - g))
     assert law.braking_acceleration(mass, g) < full
 
 
 def test_braking_limb_ends_at_rest_inside_the_band_above_the_floor():
     """The limb's descent-rate demand is 0 at ``floor + stop_above`` (inside the 2 m band), and climbs back under it."""
     law = DeorbitController(lander("canted")).descent
-    law.floor, law.mode = DEMAND.altitude, "braking"
+    law.floor, law.law.mode = DEMAND.altitude, "braking"
     stop = DEMAND.altitude + law.stop_above
     assert 0.0 < law.stop_above < 2.0
     r = c.MARS_RADIUS + stop
@@ -109,9 +109,9 @@ def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded()
                       euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
     flown = math.tan(tilt)
     wanted = np.array([0.1, -0.02])
-    law.floor, law.mode = DEMAND.altitude, "coast"
+    law.floor, law.law.mode = DEMAND.altitude, "coast"
     assert law.axis_bias(0.0, state, L, wanted) is None
-    law.mode = "braking"
+    law.law.mode = "braking"
     assert np.array_equal(law.axis_bias(0.0, state, L, wanted), np.zeros(2))  # no history yet
     bias = law.axis_bias(0.1, state, L, wanted)
     expected = 0.1 / law.axis_time * (wanted - np.array([flown, 0.0]))
@@ -119,7 +119,7 @@ def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded()
     for k in range(2, 200):
         bias = law.axis_bias(0.1 * k, state, L, wanted)
     assert float(np.linalg.norm(bias)) == pytest.approx(law.axis_limit, rel=1e-12)
-    law.mode = "coast"
+    law.law.mode = "coast"
     assert law.axis_bias(20.0, state, L, wanted) is None
 
 
@@ -186,7 +186,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     wind the braking planned on (its integral preset), not from zero."""
     controller = DeorbitController(lander("canted"))
     law, hover = controller.descent, controller.hover
-    law.drag_k, law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
+    law.drag_k, law.law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
     law.drift_W = np.array([0.0, -5.0, 0.0])  # no air fitted: the drift is the wind (world = ENU here)
     L = np.eye(3)
     h = 500.0

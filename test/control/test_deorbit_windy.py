@@ -87,13 +87,13 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
     for s, ctrl, sim in _flown(STRONG_WIND, 0):  # noqa: B007 - sim: read after the loop (the period the hover began)
         if ctrl.phase is Phase.POWERED:
             yaw_rates.append(abs(float(s.omega_B[2])))
-            if heading_at_braking is None and ctrl.descent.heading_W is not None:
-                heading_at_braking = ctrl.descent.heading_W.copy()
+            if heading_at_braking is None and ctrl.descent.law.heading_W is not None:
+                heading_at_braking = ctrl.descent.law.heading_W.copy()
         if ctrl.phase is Phase.HOVER:
             break
     assert ctrl.phase is Phase.HOVER
     # no false alarm under the canopy: all four thrusters stay in the allocation, no spin
-    assert ctrl.descent.allocation is None and ctrl.descent.spin is None
+    assert ctrl.descent.law.allocation is None and ctrl.descent.law.spin is None
     # the heading the braking began with is held (no yaw turn) and handed to the hover law
     assert heading_at_braking is not None
     np.testing.assert_array_equal(ctrl.hover.heading_W, heading_at_braking)
@@ -101,7 +101,7 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
     # the fall is stopped near the floor: within a period's braking at full thrust, not tens of metres under
     s = sim.state()
     h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
-    axial = ctrl.descent.T_v / nominal.vehicle.mass(s.fuel)
+    axial = ctrl.descent.law.T_v / nominal.vehicle.mass(s.fuel)
     assert h > 500.0 - 0.5 * axial * 1.0**2, h  # ~4 m: a second of full-thrust deceleration
 
 

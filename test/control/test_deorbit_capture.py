@@ -160,7 +160,7 @@ def test_hover_capture_is_at_rest_in_the_band_at_once_and_stays_so():
 
 def test_hover_capture_keeps_the_climb_rate_inside_the_band_under_what_the_drift_leaves():
     """Inside the band the climb rate allowed shrinks with the ground speed, so the total speed keeps
-    under ``AT_REST * speed``: at 0.18 m/s of drift (200 km sweep's case 161) the law holds the
+    under ``AT_REST * speed``: at 0.18 m/s of drift (a dispersed flight from 200 km began its hover so) the law holds the
     altitude instead of descending at 0.1 m/s, 0.21 m/s in all, outside the band's speed."""
     capture = HoverCapture(lander("canted"))
     capture.band, capture.speed = 2.0, 0.2
@@ -168,16 +168,16 @@ def test_hover_capture_keeps_the_climb_rate_inside_the_band_under_what_the_drift
     r = c.MARS_RADIUS + h
     g = c.GM_MARS / (r * r)
     # still air, at rest: the approach at APPROACH * speed (0.1 m/s) toward the demand
-    capture.v_local = np.zeros(3)
+    capture.law.v_local = np.zeros(3)
     assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(
         g + capture.RATE_GAIN * (-capture.APPROACH * capture.speed), rel=1e-12)
     # 0.12 m/s of drift: what is left of AT_REST * speed (0.16 m/s), sqrt(0.16^2 - 0.12^2) ~ 0.106, caps
     # nothing yet; at 0.15 m/s it caps the approach at sqrt(0.16^2 - 0.15^2) ~ 0.056 m/s
-    capture.v_local = np.array([0.09, -0.12, 0.0])  # ENU, 0.15 m/s
+    capture.law.v_local = np.array([0.09, -0.12, 0.0])  # ENU, 0.15 m/s
     allowed = math.sqrt((capture.AT_REST * capture.speed) ** 2 - 0.15**2)
     assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(g - capture.RATE_GAIN * allowed, rel=1e-9)
     # 0.18 m/s: nothing left, the climb rate is brought to zero where it is
-    capture.v_local = np.array([0.0, -0.18, 0.0])
+    capture.law.v_local = np.array([0.0, -0.18, 0.0])
     assert capture.vertical_acceleration(0.0, h, -0.16, DEMAND) == pytest.approx(g + capture.RATE_GAIN * 0.16, rel=1e-12)
 
 
@@ -195,7 +195,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     assert drag == pytest.approx([0.0, -20.0 * MARS_ATMOSPHERE.density(h) / 700.0 * 25.0], rel=1e-12)
     state = StateView(t=0.0, r_W=np.array([0.0, 0.0, c.MARS_RADIUS + h]), v_W=np.zeros(3), q=np.array([1.0, 0.0, 0.0, 0.0]),
                       euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
-    assert np.array_equal(hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)), np.zeros(2))
+    assert np.array_equal(hover.law.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)), np.zeros(2))
     hover.take_over(drag)
     # no velocity error: the thrust's horizontal acceleration asked for is the drag's opposite
-    assert hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)) == pytest.approx(-drag, rel=1e-12)
+    assert hover.law.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)) == pytest.approx(-drag, rel=1e-12)

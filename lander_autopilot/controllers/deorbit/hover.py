@@ -4,13 +4,16 @@ a capture that does not set a lander at rest in the band moving. Core code (no r
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from lander_sim.physics import constants as c
 
-from ..base import Demand
+from lander_sim.physics.state import StateView
+from lander_sim.physics.vehicle import Vehicle
+
+from ..base import ControlOutput, Demand
 from ..ground_speed import GroundSpeedController
 
 #: The hover's attitude poles [1/s]: twice the ground-speed law's -2 (eight times its velocity loop's
@@ -21,8 +24,11 @@ from ..ground_speed import GroundSpeedController
 HOVER_ATTITUDE_POLES: tuple[float, ...] = (-4.0,) * 6
 
 
-class HoverCapture(GroundSpeedController):
+class HoverCapture:
     """The hover after the powered descent: the ground-speed law, its altitude loop a capture.
+
+    A part: it holds the ground-speed law it flies (:attr:`law`) as that law's vertical loop
+    (:attr:`..ground_speed.GroundSpeedController.vertical_law`); ``update`` is the law's.
 
     The fall is stopped within the band ``band`` [m] of the demand (or under it), at rest or
     nearly; the mission counts the powered fuel until the lander is within the band at a total speed
@@ -55,16 +61,31 @@ class HoverCapture(GroundSpeedController):
     RATE_GAIN: ClassVar[float] = 2.0  # [1/s] thrust acceleration per m/s of climb-rate error
     AT_REST: ClassVar[float] = 0.8  # of ``speed``: the total speed the approach inside the band keeps under
 
+    def __init__(self, vehicle: Vehicle, **params: Any) -> None:
+        """``params``: the ground-speed law's (the mission sets ``attitude_poles``)."""
+        self.law = GroundSpeedController(vehicle, **params)
+        self.law.vertical_law = self
+
+    def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
+        """The ground-speed law's step, its vertical loop this capture's."""
+        return self.law.update(t, state, demand)
+
+    def reset(self) -> None:
+        """Forget the flight (the law's integrators and memories)."""
+        self.law.reset()
+
     def take_over(self, drag: np.ndarray) -> None:
         """Start from the braking's end with the horizontal loop's integral preset to hold against
         ``drag`` (the drag's horizontal acceleration at rest, ENU [m/s^2]): the tilt the wind needs
         is asked for at once."""
-        self._integral[:] = np.asarray(drag, float) / self.k_i
+        self.law.preset_velocity_integral(np.asarray(drag, float) / self.law.k_i)
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        """Thrust acceleration along up [m/s^2]: the capture (class docstring)."""
         e = h - demand.altitude
         # inside the band the climb rate allowed leaves room for the ground speed under ``speed``
-        v_h = math.hypot(float(self.v_local[0]), float(self.v_local[1]))
+        v_local = self.law.v_local
+        v_h = math.hypot(float(v_local[0]), float(v_local[1]))
         v_in = min(self.APPROACH * self.speed, math.sqrt(max((self.AT_REST * self.speed) ** 2 - v_h * v_h, 0.0)))
         outside = abs(e) - self.band
         cap = v_in if outside <= 0.0 else math.sqrt(v_in * v_in + 2.0 * self.CAPTURE_ACCEL * outside)

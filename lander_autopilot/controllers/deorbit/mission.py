@@ -261,7 +261,7 @@ class DeorbitController(Controller):
                                      requests=inner.requests)
             if (self.phase is Phase.POWERED and demand.altitude > 0
                     and settled(altitude(state) - demand.altitude, climb_rate(state), self.hover_band, self.hover_speed)):
-                self.hover.heading_W = self.landing.heading_W = self.descent.law.heading_W  # no yaw turn at the handover
+                self.hover.law.heading_W = self.landing.heading_W = self.descent.law.heading_W  # no yaw turn at the handover
                 L = local_frame(state.r_W)
                 self.hover.take_over(self.descent.horizontal_drag(L, altitude(state), np.zeros(3)))
                 self.machine.fire(t, Event.SETTLED, f"fall stopped within {self.hover_speed:g} m/s at "

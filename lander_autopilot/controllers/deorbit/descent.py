@@ -22,10 +22,9 @@ from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
 from ...design.schedule import GainSchedule
-from ..base import Demand
+from ..base import ControlOutput, Demand
 from ..calibration import AirFit
 from ..combined import CollectiveHeadroom, Mix
-from ..base import ControlOutput
 from ..landing import COAST_THRESHOLD_G, MODES, LandingController
 from .geometry import AXIS_UP_FLOOR, AxisIntegral
 

@@ -9,7 +9,6 @@ from typing import Any, ClassVar
 import numpy as np
 
 from lander_sim.physics import constants as c
-
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 

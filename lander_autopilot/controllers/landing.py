@@ -20,7 +20,7 @@ catches it: no fuel is spent on going slowly. Near the ground the tilt limit shr
 Modes (``ControlOutput.mode``, forward only, so a mode never chatters): ``coast`` (the law asks for
 less than a tenth of gravity; the attitude is held upright and the ground speed let be: without
 thrust a tilt moves nothing, and under the chute chasing the wind with attitude alone only burnt
-fuel, 20-70 kg of it in a first sweep), ``braking`` (on the braking limb), ``flare`` (on the
+fuel, 20-70 kg a flight over a sweep of landings under the chute), ``braking`` (on the braking limb), ``flare`` (on the
 exponential limb). Requests: ``deploy_parachute`` once, when the lander is descending inside the atmosphere above
 ``chute_min_altitude`` and the chute would survive (predicted drag and airspeed under
 ``chute_margin`` of its limits): the chute takes kinetic energy away for nothing, which is fuel
@@ -92,6 +92,19 @@ MODES = ("coast", "braking", "flare")
 #: least this fraction of gravity [-]: under it the thrust would tilt nothing (module docstring),
 #: and a law coasting above its braking curve asks for less than nothing.
 COAST_THRESHOLD_G = 0.1
+
+#: [s] the control period assumed until two updates have measured it: the autopilot's 10 Hz
+NOMINAL_CONTROL_PERIOD = 0.1
+#: [s] slack on the probe burn's clock (control instants ``k * period`` carry rounding of ~1e-12 s):
+#: a burn due at an instant starts at it, not a period late
+CLOCK_SLACK = 1e-9
+#: [rad] half-turns of the body per period under which the turning torque's mean (sinc) is taken as
+#: whole: sinc's error there is ~1e-19
+SINC_SMALL = 1e-9
+#: [-] floor of the sinc the spinning law divides the torque by: it reaches 0.3 at a half-turn of
+#: ~2.4 rad a period (a 47 rad/s spin at 0.1 s, well over SPIN_MAX), so it never binds in a held spin and only
+#: keeps the torque asked finite (at most 3.3 x) as the mean of a turning torque goes to zero
+SINC_FLOOR = 0.3
 
 #: [m^2] ``1/2 Cd A`` of the open canopy: its drag is ``CHUTE_DRAG_K rho v^2``
 CHUTE_DRAG_K = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
@@ -230,7 +243,7 @@ class LandingController(GroundSpeedController):
         #: Set when the failure is found under the canopy: the rest of the descent is flown spinning.
         self.spin: SpinAllocation | None = None
         self._spinning = False
-        self._dt = 0.1  # [s] control period, measured between updates
+        self._dt = NOMINAL_CONTROL_PERIOD  # [s] control period, measured between updates
 
     @property
     def mass(self) -> float:
@@ -412,9 +425,9 @@ class LandingController(GroundSpeedController):
                 or self._h_c > self.probe_height):
             self._probe_start = None
             return False
-        if self._probe_start is None or t - self._probe_start >= self.probe_period - 1e-9:
+        if self._probe_start is None or t - self._probe_start >= self.probe_period - CLOCK_SLACK:
             self._probe_start = t
-        return t - self._probe_start < self.probe_time - 1e-9
+        return t - self._probe_start < self.probe_time - CLOCK_SLACK
 
     def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
         if self.profile is not None:
@@ -473,8 +486,8 @@ class LandingController(GroundSpeedController):
         half = 0.5 * float(w[2]) * self._dt
         c_, s_ = math.cos(-half), math.sin(-half)
         txy = np.array([c_ * tau_B[0] - s_ * tau_B[1], s_ * tau_B[0] + c_ * tau_B[1]])
-        sinc = math.sin(half) / half if abs(half) > 1e-9 else 1.0
-        tau_p = float(txy @ spin.e_P) / max(sinc, 0.3)
+        sinc = math.sin(half) / half if abs(half) > SINC_SMALL else 1.0
+        tau_p = float(txy @ spin.e_P) / max(sinc, SINC_FLOOR)
         yaw = -float(I[2]) * self.SPIN_GAIN * (float(w[2]) - spin.pair_spin * self.SPIN_RATE)
         s_h = min(max(self._h_c / self.LONE_HEIGHT, 0.0), 1.0)
         lone_max = self.LONE_TOUCHDOWN + s_h * (1.0 - self.LONE_TOUCHDOWN)

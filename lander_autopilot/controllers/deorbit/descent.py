@@ -26,7 +26,7 @@ from ..base import ControlOutput, Demand
 from ..calibration import AirFit
 from ..combined import CollectiveHeadroom, Mix
 from ..landing import COAST_THRESHOLD_G, MODES, LandingController
-from .geometry import AXIS_UP_FLOOR, AxisIntegral
+from .geometry import AXIS_LIMIT, AXIS_UP_FLOOR, AxisIntegral
 
 
 def still_air_limb_speed(a_b: float, cd: float, h_c: float) -> float:
@@ -35,6 +35,23 @@ def still_air_limb_speed(a_b: float, cd: float, h_c: float) -> float:
     ``2 a_b h_c`` without drag."""
     return math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
 
+
+#: [m] the braking limb ends this far above the floor, inside the hover band (2 m): a braking that
+#: falls short still stops in the band instead of climbing back to it. The limb's margin is kept
+#: here, in height, more than in thrust (``brake_fraction`` 0.96): a braking that falls behind its
+#: limb ends lower, which costs nothing while it stays in the band; thrust held back costs every
+#: flight a longer burn. 1.75 m keeps the 200 km sweep's hardest braking (a thruster 3 % weak in a
+#: 5.6 m/s drift, ``test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band``)
+#: inside the band (the mission's ``stop_above``).
+STOP_ABOVE = 1.75
+#: [s] the attitude's lag to a new tilt under the canopy, braking (the mission's ``braking_lag``), and
+#: [s] of the braking left at which the ground speed is to be out (``braking_settle``): with the fall
+#: past the limb's end braked at ``a_b`` the braking is short, and a longer lag term holds the
+#: horizontal loop's time constant near ``tau + lag`` at the end, so the windiest flights begin the
+#: hover drifting; every pair in 0.45-0.55 s and 0.6-1.2 s gives the same count of flights within
+#: 1.05 x the optimum over both de-orbit sweeps (:meth:`DescentToAltitude.horizontal_acceleration`)
+BRAKING_LAG = 0.5
+BRAKING_SETTLE = 0.8
 
 #: Newton steps, at most, inverting the limb's stopping height from the still-air form: a bound
 #: on the work of a control period (the loop ends as soon as LIMB_TOLERANCE is met)
@@ -154,23 +171,17 @@ class DescentToAltitude:
     drag_scale: float = 1.0  # measured drag / modelled drag under the chute (.estimation.ChuteDragLearner)
     rate_schedule: GainSchedule | None = None
     RETURN_RATE: ClassVar[float] = 1.0  # [1/s] climb-back demand per metre below the floor
-    #: [m] the limb ends this far above the floor, inside the hover band (2 m): a braking that falls
-    #: short still stops in the band instead of climbing back to it. The limb's margin is kept here,
-    #: in height, more than in thrust (``brake_fraction`` 0.96): a braking that falls behind its limb
-    #: ends lower, which costs nothing while it stays in the band; thrust held back costs every
-    #: flight a longer burn. 1.75 m keeps the 200 km sweep's hardest braking (a thruster 3 % weak in
-    #: a 5.6 m/s drift, ``test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band``)
-    #: inside the band (the mission's ``stop_above``).
-    stop_above: float = 1.75
+    #: [m] the limb ends this far above the floor (:data:`STOP_ABOVE`; the mission's ``stop_above``)
+    stop_above: float = STOP_ABOVE
     #: [s] of the braking left at which the ground speed is to be out (the mission's ``braking_settle``)
-    settle: float = 0.8
+    settle: float = BRAKING_SETTLE
     TAU_MIN: ClassVar[float] = 0.7  # [s] shortest time constant of the horizontal loop (horizontal_acceleration)
     #: [s] the attitude's lag to a new tilt under the canopy, braking (the mission's ``braking_lag``)
-    lag: float = 0.5
+    lag: float = BRAKING_LAG
     axis_time: float = 1.0  # [s] integral time of the thrust axis's correction (axis_bias)
     #: largest correction of the thrust axis, horizontal / vertical part (~11 deg; 0: none; the
     #: mission's ``axis_limit``)
-    axis_limit: float = 0.2
+    axis_limit: float = AXIS_LIMIT
     #: the horizontal loop's lag term counts, where the mixer's ceiling bound, the thrust it gave
     #: (True) rather than the thrust asked (the mission's ``lag_counts_ceiling``)
     lag_counts_ceiling: bool = True
@@ -315,12 +326,8 @@ class DescentToAltitude:
         that missing thrust's horizontal part as speed already being taken out, so the hover begins
         drifting (``test_braking_at_the_mixers_ceiling_counts_the_thrust_it_gives_not_the_one_asked``).
 
-        ``lag`` 0.5 s and ``settle`` 0.8 s: with the fall past the limb's end braked at ``a_b`` the
-        braking is short, and a longer lag term holds the loop's effective time constant near
-        ``tau + lag`` at the end, so the windiest flights begin the hover drifting
-        (``test_braking_takes_the_drift_out_before_its_shorter_end``; every pair in 0.45-0.55 s
-        and 0.6-1.2 s gave the same count of flights within 1.05 x the optimum over both de-orbit
-        sweeps). The loop's integral is held at 0 (it winds up on the drift while
+        ``lag`` and ``settle``: :data:`BRAKING_LAG`, :data:`BRAKING_SETTLE`
+        (``test_braking_takes_the_drift_out_before_its_shorter_end``). The loop's integral is held at 0 (it winds up on the drift while
         coasting).
         """
         if self.floor <= 0.0 or self.law.mode == "coast":

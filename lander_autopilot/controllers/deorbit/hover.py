@@ -21,6 +21,12 @@ from ..ground_speed import GroundSpeedController
 #: (``test_hover_attitude_fast_enough_to_take_the_last_drift_out_under_the_canopy``). -4 is 0.4 rad
 #: per 0.1 s period.
 HOVER_ATTITUDE_POLES: tuple[float, ...] = (-4.0,) * 6
+#: [m] the hover band: the powered descent hands over to the hover within this of the demand
+#: altitude, the hover holds it within it (the mission's ``hover_band``); the de-orbit sweeps' own
+#: success band, the task's "hover at a fixed altitude" held to the lander's size
+HOVER_BAND = 2.0
+#: [m/s] ... at a climb rate within this (the mission's ``hover_speed``): the sweeps' "at rest"
+HOVER_SPEED = 0.2
 
 
 class HoverCapture:
@@ -52,8 +58,8 @@ class HoverCapture:
     the wind needs at rest is flown before the drift the braking left can grow.
     """
 
-    band: float = 2.0
-    speed: float = 0.2
+    band: float = HOVER_BAND
+    speed: float = HOVER_SPEED
     APPROACH: ClassVar[float] = 0.5  # of ``speed``: the climb rate allowed inside the band
     POSITION_GAIN: ClassVar[float] = 0.5  # [1/s] climb-rate demand per metre of error
     CAPTURE_ACCEL: ClassVar[float] = 1.0  # [m/s^2] braking into the band from outside it

@@ -68,7 +68,7 @@ from ..params import ParamTable
 from .chute import ChuteDecision
 from .descent import DescentToAltitude
 from .estimation import OnlineEstimator
-from .geometry import altitude, climb_rate, thrust_axis_attitude
+from .geometry import MIN_SPEED, altitude, climb_rate, thrust_axis_attitude
 from .hover import HoverCapture
 from .mpc import ATTITUDE_LAG, MpcDescent
 from .params import DEORBIT_MPC_PARAMS, DEORBIT_PARAMS, SCHEDULED_ROWS
@@ -94,6 +94,8 @@ CHUTE_AND_BODY_DRAG_K = (0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACH
 #: 1/s covers it), on a 5 x 5 grid.
 SCHEDULE_DAMPING_MAX = 1.0
 SCHEDULE_POINTS = 5
+#: [m] a kilometre, for the phase log's altitudes
+KM = 1e3
 
 
 class DeorbitController(Controller):
@@ -326,7 +328,7 @@ class DeorbitController(Controller):
 
     def _retrograde(self, state: StateView, collective: float) -> np.ndarray:
         """Throttles holding the thrust axis against the velocity (attitude priority) [unclipped]."""
-        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), 1e-9)
+        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), MIN_SPEED)
         return mix_with_attitude_priority(collective, self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state))
 
     def start_in(self, phase: Phase, chute_open: bool = False) -> None:
@@ -354,9 +356,9 @@ class DeorbitController(Controller):
         if self.phase is Phase.BURN:
             orbit = Orbit.of(state.r_W, state.v_W)
             if periapsis_reached(orbit.periapsis_radius, self.plan.periapsis_altitude):
-                self.machine.fire(t, Event.PERIAPSIS, f"periapsis {(orbit.periapsis_radius - c.MARS_RADIUS) / 1e3:.2f} km")
+                self.machine.fire(t, Event.PERIAPSIS, f"periapsis {(orbit.periapsis_radius - c.MARS_RADIUS) / KM:.2f} km")
         if self.phase is Phase.COAST and in_atmosphere(h):
-            self.machine.fire(t, Event.ATMOSPHERE, f"altitude {h / 1e3:.1f} km: top of the atmosphere")
+            self.machine.fire(t, Event.ATMOSPHERE, f"altitude {h / KM:.1f} km: top of the atmosphere")
         if self.phase in (Phase.SLEW, Phase.BURN):
             retro = -state.v_W / float(np.linalg.norm(state.v_W))
             d = self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state)

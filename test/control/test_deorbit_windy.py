@@ -325,7 +325,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
     spec = load_spec(r.spec)
     handover = None
     stopped, climb_max, fall_end, drift, coast_fuel = False, 0.0, math.nan, math.nan, math.nan
-    asked = flown = 0.0
+    asked = tilt_flown = 0.0
     for s, ctrl, sim in flown(r, controller_index, **params):
         rn = float(np.linalg.norm(s.r_W))
         error, climb = rn - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / rn
@@ -336,7 +336,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
         if ctrl.phase is Phase.POWERED and getattr(ctrl, "braking_begun", False) and ctrl.thrust_L is not None:
             T, z = ctrl.thrust_L, ctrl.frame @ quat_to_matrix(s.q)[2]
             asked += float(np.linalg.norm(T[:2])) / float(T[2])
-            flown += float(np.linalg.norm(z[:2])) / float(z[2])
+            tilt_flown += float(np.linalg.norm(z[:2])) / float(z[2])
         if handover is not None and math.isnan(fall_end) and climb >= 0.0:
             fall_end = error
         if math.isnan(drift) and ctrl.phase is Phase.HOVER:
@@ -350,7 +350,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
             ratio = fuel / powered_optimum(sim, handover, DEMAND.altitude)
             if math.isnan(fall_end):  # in the band under the hover's speed, still (slowly) falling
                 fall_end = error
-            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, flown / asked if asked > 0.0 else math.nan, fuel)
+            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, tilt_flown / asked if asked > 0.0 else math.nan, fuel)
     raise AssertionError("never within the band at its speed")
 
 

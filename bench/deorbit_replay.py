@@ -97,7 +97,7 @@ class Replayed:
 _DESIGN = ("K", "k_i", "k_p", "brake_fraction", "stop_above", "target_above", "settings")
 
 
-def _fill_missing(old: Any, fresh: Any, depth: int = 2) -> None:
+def _fill_missing(old: Any, fresh: Any, depth: int = 3) -> None:
     """Give ``old`` (unpickled from older code) the attributes ``fresh`` has and it lacks, and
     fresh's design constants (:data:`_DESIGN`: a change of poles or of a margin is then replayed),
     recursively into attributes that are objects of the same class."""

@@ -75,10 +75,15 @@ from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, Thr
 from lander_interfaces.srv import SwitchController
 from lander_ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
 from lander_ros.params import check_overrides
+from lander_ros.strangers import InputGuard, with_message_info
 from lander_sim.scenes import load_scene
 
 #: Only the newest state matters: a controller must never work through a backlog of old states.
 _STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+#: The same in a launched flight, whose autopilot refuses other simulators' states: one sample of
+#: history is shared by every writer, so a stranger's state would push out the flight's own, which a
+#: lockstep simulator then waits for in vain. The flight's simulator has one state out at a time.
+_FLIGHT_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 #: Demand altitude input: only the newest demand matters, a few queued are plenty.
 _DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
@@ -107,6 +112,8 @@ class AutopilotNode(Node):
         params_text = self._declare("controller_params", dump_controller_params(wanted.parameters))
         demand = self._declare("demand_altitude", wanted.demand_altitude)
         self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT))
+        # A launched flight's autopilot takes states only from its flight's simulator (lander_ros.strangers).
+        self._guard = InputGuard(bool(self._declare("flight_id", "")), ("/lander_sim",), "/lander/state", verbs=False)
         # Before any subscription or timer exists: importing python-control holds the GIL for
         # seconds in stretches, and in a background thread it starved the control steps, so the
         # first states of a lockstep flight waited out the simulator's timeout (measured: 10 states
@@ -131,7 +138,8 @@ class AutopilotNode(Node):
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
-        self._sub_state = self.create_subscription(LanderState, "/lander/state", self._on_state, _STATE_QOS)
+        self._sub_state = self.create_subscription(LanderState, "/lander/state", with_message_info(self._on_state),
+                                                   _FLIGHT_STATE_QOS if self._guard.active else _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
         # "Land": switch to the landing law with demand altitude 0 (docs/autopilot_node.md).
@@ -193,12 +201,20 @@ class AutopilotNode(Node):
         """Declare a parameter from its spec with ``default`` (the scene's, where the spec has
         none); return its value (an override wins over the default)."""
         spec = SPECS[name]
-        descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=spec.dynamic_typing)
+        descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=spec.dynamic_typing,
+                                         read_only=spec.read_only)
         return self.declare_parameter(name, default if spec.default is None else spec.default, descriptor).value
 
     # --- control step ------------------------------------------------------------------------
 
-    def _on_state(self, msg: LanderState) -> None:
+    def _on_state(self, msg: LanderState, info=None) -> None:
+        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/state"))
+        if refusal is not None:  # another flight's simulator: announced once, then counted
+            if refusal:
+                self._refuse(refusal, self._last_stamp)
+            else:
+                self.slot.reject(self.slot.last_error)  # counted; the reason stays the announced one
+            return
         first = self._last_state_wall is None
         self._last_state_wall = time.monotonic()
         if self._state_lost:

@@ -110,14 +110,18 @@ def parse_end_on(text: str) -> tuple[str, ...]:
 
 
 def shortfalls(reference: dict[str, tuple[int, bool]], recorded: dict[str, int]) -> list[str]:
-    """``"TOPIC got of n"`` for each topic (sorted) whose recorded count is below ``n``, or differs
-    from it where the reference is ``exact``: ``reference`` is ``{topic: (n, exact)}``."""
-    out = []
-    for topic, (n, exact) in sorted(reference.items()):
-        got = recorded.get(topic, 0)
-        if got < n or (exact and got != n):
-            out.append(f"{topic} {got} of {n}")
-    return out
+    """``"TOPIC got of n"`` for each topic (sorted) whose recorded count is below ``n``: messages
+    published and missing. ``reference`` is ``{topic: (n, exact)}``."""
+    return [f"{topic} {recorded.get(topic, 0)} of {n}" for topic, (n, _exact) in sorted(reference.items())
+            if recorded.get(topic, 0) < n]
+
+
+def surplus(reference: dict[str, tuple[int, bool]], recorded: dict[str, int]) -> list[str]:
+    """``"TOPIC got of n"`` for each ``exact`` topic (sorted) recorded *more* often than ``n``: the
+    bag holds messages its publishers did not send in this flight (another flight's in the same
+    ROS domain, or a second epoch); not a missing message."""
+    return [f"{topic} {recorded.get(topic, 0)} of {n}" for topic, (n, exact) in sorted(reference.items())
+            if exact and recorded.get(topic, 0) > n]
 
 
 #: The simulator's pause answer ends with this and the flight's number.

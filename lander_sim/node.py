@@ -26,7 +26,7 @@ import math
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -51,8 +51,10 @@ from lander_ros.flight_span import (
     parse_end_on,
 )
 from lander_ros.params import check_overrides
+from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.errors import InputError
 from lander_sim.ros import convert
+from lander_sim.ros.command_hold import CommandHold
 from lander_sim.ros.config import (
     NODE_NAME,
     PARAMETERS,
@@ -62,7 +64,7 @@ from lander_sim.ros.config import (
     check_change,
     check_parameter,
 )
-from lander_sim.ros.diagnostics import NodeHealth, to_diagnostic_status
+from lander_sim.ros.diagnostics import NodeHealth, diagnostics_array
 from lander_sim.ros.gate import Gate, GateSettings, Mode, Publish, TickOutcome
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
@@ -106,6 +108,7 @@ class SimNode(Node):
                 raise ConfigError(reason)
 
         self.health = NodeHealth()
+        self._hold = CommandHold()  # the held throttle command and its age limit (command_timeout)
         self._cache_parameters()
         #: Running, paused, held at pause_at, awaiting the lockstep answer or ended (lander_sim.ros.gate):
         #: the node feeds it every event and advances or publishes only as it answers.
@@ -114,13 +117,11 @@ class SimNode(Node):
         #: The flight's number: 0 the node's first, one more at each reset or scene load. In
         #: /diagnostics and the pause answer, so a recorder can drop a wall-paced report sent before
         #: the reset it awaits (lander_tools.whole_flight).
-        self._flight = 0
+        self.flight = 0
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
         self._want_odom = self._want_pose = self._want_markers = False
         self._state_subscribers = 0  # subscriptions matched by the state publisher (diagnostics)
         self._next_sub_check = 0.0
-        self._cmd_t: float | None = None  # sim time the held command was accepted
-        self._stale = False
         self._last_marker_wall = -math.inf
         self._next_diag_wall = time.monotonic()
         self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
@@ -144,8 +145,11 @@ class SimNode(Node):
                          self._pub_events, self._pub_diag)
 
         c = self._counted
+        # A launched flight's simulator takes throttles only from the flight's nodes (lander_ros.strangers).
+        self._guard = InputGuard(bool(self._param("flight_id")), tuple(self._param("flight_nodes").split()))
         self._inputs = (
-            self.create_subscription(ThrottleCommand, "/lander/throttle", c(self._on_throttle), _INPUT_QOS),
+            self.create_subscription(ThrottleCommand, "/lander/throttle", with_message_info(c(self._on_throttle)),
+                                     _INPUT_QOS),
             self.create_subscription(Vector3Stamped, "/lander/wind", c(self._on_wind), _INPUT_QOS),
         )
 
@@ -311,12 +315,8 @@ class SimNode(Node):
 
     def _check_staleness(self) -> None:
         """Zero-order hold with a staleness limit in sim time; zero throttles once it is exceeded."""
-        limit = self._command_timeout
-        if limit <= 0.0 or self._cmd_t is None or self._stale:
-            return
-        age = self.sim.t - self._cmd_t
-        if age > limit:
-            self._stale = True
+        age, limit = self._hold.expired(self.sim.t), self._hold.timeout
+        if age is not None:
             self.health.stale_commands += 1
             self.sim.zero_throttles()
             detail = f"throttle command is {age:.3f} s old (limit command_timeout = {limit} s): throttles set to 0"
@@ -397,19 +397,14 @@ class SimNode(Node):
             "sim_time": repr(self.sim.t),
             "paused": str(self.gate.mode.paused),
             "steps_per_tick": str(self._k),
-            "flight": str(self._flight),
+            "flight": str(self.flight),
             "pacer_overruns": str(self.pacer.overruns),
             # Matched by this node's writer (not just seen in the graph): a start-up handshake
             # can wait for it, so the first state reaches everyone (test/reliability).
             "state_subscribers": str(self._state_subscribers),
         }
-        arr = DiagnosticArray()
-        convert.fill_stamp(arr.header.stamp, self.sim.t)
-        status = DiagnosticStatus()
-        to_diagnostic_status(status, self.health, name=f"{NODE_NAME}: simulation", hardware_id=self.sim.scene.name,
-                             extra=extra)
-        arr.status = [status]
-        self._pub_diag.publish(arr)
+        self._pub_diag.publish(diagnostics_array(self.health, t=self.sim.t, name=f"{NODE_NAME}: simulation",
+                                                 hardware_id=self.sim.scene.name, extra=extra))
         self._counts["/diagnostics"] += 1
 
     # --- inputs ------------------------------------------------------------------------------
@@ -420,7 +415,14 @@ class SimNode(Node):
         self.get_logger().warning(f"rejected {kind} (#{count}): {detail}", throttle_duration_sec=1.0)
         self._publish_event(FlightEvent.INPUT_REJECTED, f"{kind}: {detail}", [float(count)])
 
-    def _on_throttle(self, msg: ThrottleCommand) -> None:
+    def _on_throttle(self, msg: ThrottleCommand, info=None) -> None:
+        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/throttle"))
+        if refusal is not None:  # a stranger's: announced once, then counted
+            if refusal:
+                self.reject(STRANGER_KIND, refusal)
+            else:
+                self.health.reject(STRANGER_KIND)
+            return
         values = msg.throttles
         try:
             self.sim.set_throttles(values)
@@ -428,7 +430,7 @@ class SimNode(Node):
             self.reject("throttle." + convert.throttle_fault(values, self.sim.vehicle.n_thrusters), str(exc))
             return
         self.health.commands_accepted += 1
-        self._cmd_t, self._stale = self.sim.t, False
+        self._hold.accepted(self.sim.t)
         if msg.state_sequence != 0:
             self.health.command_received(msg.state_sequence, time.monotonic())
             self.gate.answered(msg.state_sequence)
@@ -444,11 +446,6 @@ class SimNode(Node):
             self.reject("wind.non_finite", str(exc))
 
     # --- what the services read ---------------------------------------------------------------
-
-    @property
-    def flight(self) -> int:
-        """The flight's number: 0 the node's first, one more at each reset or scene load."""
-        return self._flight
 
     @property
     def steps_per_tick(self) -> int:
@@ -469,7 +466,7 @@ class SimNode(Node):
 
     def _cache_parameters(self) -> None:
         """Parameters read every tick, as attributes (``get_parameter`` costs ~3 us a call, measured)."""
-        self._command_timeout = float(self._param("command_timeout"))
+        self._hold.timeout = float(self._param("command_timeout"))
         self._publish_tf = bool(self._param("publish_tf"))
         self._marker_period = 1.0 / float(self._param("marker_rate"))
         self._world_frame = str(self._param("world_frame"))
@@ -568,13 +565,13 @@ class SimNode(Node):
         controller sees the sequence fall and clears its memory).
         """
         self._seq = 0
-        self._flight += 1
+        self.flight += 1
         pending = self.gate.reset()  # running stays running; paused, held or ended: paused
         self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
         self._timeouts_at_reset = self.health.lockstep_timeouts
         self.check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()
-        self._cmd_t, self._stale = None, False
+        self._hold.clear()
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer.set_period(self._k * self.sim.dt)
         self._markers.clear_trajectory()

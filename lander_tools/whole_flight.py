@@ -119,7 +119,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             on_started: Callable[[], None] | None) -> int:
     from std_srvs.srv import Trigger
 
-    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched, paused_flight, shortfalls
+    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched, paused_flight, shortfalls, surplus
     from lander_tools.live.link import AUTOPILOT_NODE, SIM_NODE, FlightLink, NoFlight
     from lander_tools.recorder import Recorder
 
@@ -208,9 +208,13 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
         if flight_end is None:
             _say("bag not checked: the flight did not reach its end while recording")
             return EXIT_OK
-        short = shortfalls({t: (flight_end.counts[t], t not in shared) for t in sim_topics}, counts)
+        reference = {t: (flight_end.counts[t], t not in shared) for t in sim_topics}
+        short, extra = shortfalls(reference, counts), surplus(reference, counts)
         if short:
             _say("INCOMPLETE: " + ", ".join(short) + " published")
+            return EXIT_INCOMPLETE_BAG
+        if extra:
+            _say("EXTRA messages, not published by this flight's simulator (another flight's?): " + ", ".join(extra))
             return EXIT_INCOMPLETE_BAG
         _say(f"complete: the whole flight, t = 0 to {flight_end.t!r} s ({flight_end.reason}), "
              "every message the simulator published is in it")

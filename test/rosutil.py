@@ -31,8 +31,8 @@ DOMAIN_MIN, DOMAIN_MAX = 1, 101
 #: (eProsima/Fast-DDS#6117). Seen in two workers: "Failed init_port fastdds_port7001:
 #: open_and_lock_file failed", and a flight whose nodes never met. A new ROS test file belongs here.
 ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
-             "sweep/test_through_ros.py", "tools/test_deorbit_params_example.py", "tools/test_headline_flight.py",
-             "tools/test_launch_file.py", "tools/test_record_command.py", "test_cli.py")
+             "sweep/test_through_ros.py", "tools/test_deorbit_params_example.py", "tools/test_flights_apart.py",
+             "tools/test_headline_flight.py", "tools/test_launch_file.py", "tools/test_record_command.py", "test_cli.py")
 
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"
 _held_locks: dict[int, Any] = {}  # domain -> its open lock file (held until released or exit)

@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 # Built from parts so that this file's own text holds no match.
 _STEP, _ITEM = "st" + "op", "iss" + "ue"
 HISTORY_WORDS = re.compile(
-    rf"\b({_STEP}s? [0-9]+|{_ITEM} [0-9]+|since {_STEP}|until {_STEP})\b", re.IGNORECASE)
+    rf"\b({_STEP}s?[- ][0-9]+|{_ITEM}[- ][0-9]+|since {_STEP}|until {_STEP})\b", re.IGNORECASE)
 
 
 def history_hits(text: str) -> list[tuple[int, str]]:
@@ -44,7 +44,7 @@ def tracked_text_files() -> list[Path]:
 
 @pytest.mark.parametrize("line", [
     f"measured at {_STEP} 41", f"{_STEP.title()}s 43-44", f"as in {_ITEM} 45", f"{_ITEM.upper()} 7: a regression",
-    f"0.95 until {_STEP} 41", f"the margin since {_STEP} 40", f"{_STEP} 3's figure",
+    f"0.95 until {_STEP} 41", f"the margin since {_STEP} 40", f"{_STEP} 3's figure", f"the {_ITEM}-14 yardstick",
 ])
 def test_the_matcher_finds_a_history_word(line: str) -> None:
     assert history_hits(f"first line\n{line}\n") == [(2, line)]

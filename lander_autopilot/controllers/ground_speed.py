@@ -24,7 +24,7 @@ a 50 m/s start does not wind it up.
 from __future__ import annotations
 
 import math
-from typing import ClassVar, TypedDict, Unpack
+from typing import ClassVar, Protocol, TypedDict, Unpack
 
 import numpy as np
 
@@ -54,6 +54,14 @@ class _Collective(Controller):
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
         return self.level * self._ones
+
+
+class VerticalLaw(Protocol):
+    """A part flying the ground-speed law's vertical loop in eq 18's place (:attr:`GroundSpeedController.vertical_law`)."""
+
+    def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        """Thrust acceleration wanted along up [m/s^2] (gravity included) at altitude ``h`` [m], climb rate ``hd`` [m/s]."""
+        ...
 
 
 class GroundSpeedParams(TypedDict, total=False):
@@ -130,10 +138,24 @@ class GroundSpeedController(SumController):
         """The outer loop's integral of the velocity error, ENU ``(east, north)`` [m] (a copy)."""
         return self._integral.copy()
 
+    def preset_velocity_integral(self, value: np.ndarray) -> None:
+        """Set the outer loop's integral, ENU ``(east, north)`` [m] (a law taking over a flight in a wind)."""
+        self._integral[:] = value
+
+    def clear_velocity_integral(self) -> None:
+        """Set the outer loop's integral to zero (a law that flies the horizontal loop itself for a while)."""
+        self._integral[:] = 0.0
+
     # --- the parts a subclass (the landing law) changes ---------------------------------------
 
+    #: A part flying the vertical loop in eq 18's place (the de-orbit's hover capture); None: eq 18.
+    vertical_law: VerticalLaw | None = None
+
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
-        """Thrust acceleration wanted along ``up`` [m/s^2] (gravity included): eq 18 about the demand."""
+        """Thrust acceleration wanted along ``up`` [m/s^2] (gravity included): eq 18 about the demand,
+        or the :attr:`vertical_law`'s."""
+        if self.vertical_law is not None:
+            return self.vertical_law.vertical_acceleration(t, h, hd, demand)
         return self.vertical.vertical_acceleration(h, hd, demand)
 
     def tilt_limit(self, h: float) -> float:

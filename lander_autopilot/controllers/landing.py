@@ -20,7 +20,7 @@ catches it: no fuel is spent on going slowly. Near the ground the tilt limit shr
 Modes (``ControlOutput.mode``, forward only, so a mode never chatters): ``coast`` (the law asks for
 less than a tenth of gravity; the attitude is held upright and the ground speed let be: without
 thrust a tilt moves nothing, and under the chute chasing the wind with attitude alone only burnt
-fuel, 20-70 kg of it in a first sweep), ``braking`` (on the braking limb), ``flare`` (on the
+fuel, 20-70 kg a flight over a sweep of landings under the chute), ``braking`` (on the braking limb), ``flare`` (on the
 exponential limb). Requests: ``deploy_parachute`` once, when the lander is descending inside the atmosphere above
 ``chute_min_altitude`` and the chute would survive (predicted drag and airspeed under
 ``chute_margin`` of its limits): the chute takes kinetic energy away for nothing, which is fuel
@@ -54,7 +54,7 @@ wind is then off by more than the check takes). Once a failure is known the law 
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -83,8 +83,60 @@ MODES = ("coast", "braking", "flare")
 #: and a law coasting above its braking curve asks for less than nothing.
 COAST_THRESHOLD_G = 0.1
 
+#: [s] the control period assumed until two updates have measured it: the autopilot's 10 Hz
+NOMINAL_CONTROL_PERIOD = 0.1
+#: [s] slack on the probe burn's clock (control instants ``k * period`` carry rounding of ~1e-12 s):
+#: a burn due at an instant starts at it, not a period late
+CLOCK_SLACK = 1e-9
+#: [rad] half-turns of the body per period under which the turning torque's mean (sinc) is taken as
+#: whole: sinc's error there is ~1e-19
+SINC_SMALL = 1e-9
+#: [-] floor of the sinc the spinning law divides the torque by: it reaches 0.3 at a half-turn of
+#: ~2.4 rad a period (a 47 rad/s spin at 0.1 s, well over SPIN_MAX), so it never binds in a held spin and only
+#: keeps the torque asked finite (at most 3.3 x) as the mean of a turning torque goes to zero
+SINC_FLOOR = 0.3
+
 #: [m^2] ``1/2 Cd A`` of the open canopy: its drag is ``CHUTE_DRAG_K rho v^2``
 CHUTE_DRAG_K = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2
+
+
+class DescentProfile(Protocol):
+    """A part that flies the landing law's loops to another end than a touchdown (the de-orbit's
+    braking to a hover, :class:`.deorbit.DescentToAltitude`), handed to :class:`LandingController`
+    as ``profile``. The law asks it at each of its steps; a method that returns None leaves that
+    step to the landing law's own. It reads and sets the law through the law's public members."""
+
+    #: whether the law watches for a failed thruster (and probes the coast under the canopy for one)
+    detects_failures: bool
+
+    def braking_acceleration(self, mass: float, g: float) -> float:
+        """The planned braking deceleration [m/s^2] at ``mass`` [kg] under gravity ``g`` [m/s^2]."""
+        ...
+
+    def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        """Thrust acceleration along up [m/s^2] at altitude ``h`` [m], climb rate ``hd`` [m/s]; sets the law's mode."""
+        ...
+
+    def tilt_limit(self, h: float) -> float | None:
+        """Largest tilt of the thrust from the vertical [rad] at altitude ``h``; None: the law's."""
+        ...
+
+    def horizontal_acceleration(self, state: StateView, L: np.ndarray, h: float, v_L: np.ndarray,
+                                error: np.ndarray) -> np.ndarray | None:
+        """Horizontal thrust acceleration, ENU [m/s^2] (the ground-speed law's hook); None: the law's PI."""
+        ...
+
+    def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
+        """A correction to the thrust axis (the ground-speed law's hook); None: none."""
+        ...
+
+    def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray | None:
+        """World vector the demand body x is kept nearest to; None: the law's."""
+        ...
+
+    def mixed(self, m: Mix) -> None:
+        """Told each step's mix (the throttles before clipping and whether the mixer gave way)."""
+        ...
 
 
 class LandingController(GroundSpeedController):
@@ -96,9 +148,6 @@ class LandingController(GroundSpeedController):
     """
 
     name: ClassVar[str] = "landing"
-    #: Watch for a failed thruster (and probe the coast under the canopy for one). A subclass whose
-    #: flight the watch cannot read may switch it off (:class:`..deorbit.DescentToAltitude`).
-    detects_failures: ClassVar[bool] = True
 
     PARAMS: ClassVar[ParamTable] = ParamTable((
         Param("touchdown_rate", 0.25, "m/s", "> 0", "descent rate at contact (the flare limb's end)", positive),
@@ -125,8 +174,13 @@ class LandingController(GroundSpeedController):
         *(GroundSpeedController.PARAMS[k] for k in ("max_tilt", "velocity_poles", "attitude_poles", "design_fuel")),
     ))
 
-    def __init__(self, vehicle: Vehicle, **params: object) -> None:
+    def __init__(self, vehicle: Vehicle, profile: DescentProfile | None = None, **params: object) -> None:
         p = self.PARAMS.resolve(params, self.name)
+        #: The part flying the law to another end (:class:`DescentProfile`); None: a landing.
+        self.profile = profile
+        #: Watch for a failed thruster (and probe the coast under the canopy for one); a profile whose
+        #: flight the watch cannot read switches it off (:class:`..deorbit.DescentToAltitude`).
+        self.detects_failures = True if profile is None else profile.detects_failures
         super().__init__(
             vehicle, velocity_poles=p["velocity_poles"], max_tilt=p["max_tilt"], attitude_poles=p["attitude_poles"],  # type: ignore[arg-type]
             design_fuel=p["design_fuel"],  # type: ignore[arg-type]
@@ -175,7 +229,7 @@ class LandingController(GroundSpeedController):
         #: Set when the failure is found under the canopy: the rest of the descent is flown spinning.
         self.spin: SpinAllocation | None = None
         self._spinning = False
-        self._dt = 0.1  # [s] control period, measured between updates
+        self._dt = NOMINAL_CONTROL_PERIOD  # [s] control period, measured between updates
 
     @property
     def mass(self) -> float:
@@ -187,10 +241,18 @@ class LandingController(GroundSpeedController):
     def mass(self, value: float) -> None:
         self._mass = float(value)
 
+    @property
+    def control_period(self) -> float:
+        """The control period [s], measured between the last two updates (0.1 s before two)."""
+        return self._dt
+
     # --- profile ------------------------------------------------------------------------------
 
     def braking_acceleration(self, mass: float, g: float) -> float:
-        """``a_b`` [m/s^2]: the planned braking deceleration at ``mass`` [kg] under gravity ``g``."""
+        """``a_b`` [m/s^2]: the planned braking deceleration at ``mass`` [kg] under gravity ``g``
+        (the profile's, if one flies the law)."""
+        if self.profile is not None:
+            return self.profile.braking_acceleration(mass, g)
         return self.brake_fraction * max(self.T_v / mass - g, 0.0)
 
     def descent_rate_demand(self, h_c: float, a_b: float) -> tuple[float, float, bool]:
@@ -209,6 +271,8 @@ class LandingController(GroundSpeedController):
         return v_x, (v_x - self.v_td) / self.k_f
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        if self.profile is not None:
+            return self.profile.vertical_acceleration(t, h, hd, demand)
         r = c.MARS_RADIUS + h
         g = c.GM_MARS / (r * r)
         a_b = self.braking_acceleration(self._mass, g)
@@ -221,6 +285,10 @@ class LandingController(GroundSpeedController):
         return a_up
 
     def tilt_limit(self, h: float) -> float:
+        if self.profile is not None:
+            lim = self.profile.tilt_limit(h)
+            if lim is not None:
+                return lim
         s = min(max((h - self.half_size) / self.tilt_height, 0.0), 1.0)
         return self.touchdown_tilt + s * (self.max_tilt - self.touchdown_tilt)
 
@@ -229,6 +297,17 @@ class LandingController(GroundSpeedController):
 
     def velocity_demand(self, demand: Demand) -> tuple[float, float]:
         return (0.0, 0.0)
+
+    def horizontal_acceleration(self, state: StateView, L: np.ndarray, h: float, v_L: np.ndarray,
+                                error: np.ndarray) -> np.ndarray:
+        if self.profile is not None:
+            a_h = self.profile.horizontal_acceleration(state, L, h, v_L, error)
+            if a_h is not None:
+                return a_h
+        return super().horizontal_acceleration(state, L, h, v_L, error)
+
+    def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
+        return None if self.profile is None else self.profile.axis_bias(t, state, L, wanted)
 
     # --- fuel and parachute -------------------------------------------------------------------
 
@@ -332,11 +411,15 @@ class LandingController(GroundSpeedController):
                 or self._h_c > self.probe_height):
             self._probe_start = None
             return False
-        if self._probe_start is None or t - self._probe_start >= self.probe_period - 1e-9:
+        if self._probe_start is None or t - self._probe_start >= self.probe_period - CLOCK_SLACK:
             self._probe_start = t
-        return t - self._probe_start < self.probe_time - 1e-9
+        return t - self._probe_start < self.probe_time - CLOCK_SLACK
 
     def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
+        if self.profile is not None:
+            axis = self.profile.heading_axis(state, L)
+            if axis is not None:
+                return axis
         if self.allocation is None:
             return super().heading_axis(state, L)
         return quat_to_matrix(state.q)[0]  # yaw given up: keep the current heading
@@ -389,8 +472,8 @@ class LandingController(GroundSpeedController):
         half = 0.5 * float(w[2]) * self._dt
         c_, s_ = math.cos(-half), math.sin(-half)
         txy = np.array([c_ * tau_B[0] - s_ * tau_B[1], s_ * tau_B[0] + c_ * tau_B[1]])
-        sinc = math.sin(half) / half if abs(half) > 1e-9 else 1.0
-        tau_p = float(txy @ spin.e_P) / max(sinc, 0.3)
+        sinc = math.sin(half) / half if abs(half) > SINC_SMALL else 1.0
+        tau_p = float(txy @ spin.e_P) / max(sinc, SINC_FLOOR)
         yaw = -float(I[2]) * self.SPIN_GAIN * (float(w[2]) - spin.pair_spin * self.SPIN_RATE)
         s_h = min(max(self._h_c / self.LONE_HEIGHT, 0.0), 1.0)
         lone_max = self.LONE_TOUCHDOWN + s_h * (1.0 - self.LONE_TOUCHDOWN)
@@ -399,6 +482,13 @@ class LandingController(GroundSpeedController):
         return Mix(u, mixed_from=u.copy() if saturated else None)
 
     def mix(self, t: float, state: StateView, inner: Demand) -> Mix:
+        m = self._allocated_mix(t, state, inner)
+        if self.profile is not None:
+            self.profile.mixed(m)
+        return m
+
+    def _allocated_mix(self, t: float, state: StateView, inner: Demand) -> Mix:
+        """The mix over the thrusters that work: all four's, or the allocation's once one failed."""
         if self.allocation is None:
             return super().mix(t, state, inner)
         lift = self.lift_force

@@ -26,6 +26,34 @@ from lander_sim.physics.models.atmosphere import Atmosphere
 
 from .entry_flight import NO_ENTRY, SKIPPED, entry_flight
 
+#: [s] time before the de-orbit burn may start: the attitude manoeuvre that turns the thrust axis
+#: retrograde: the mission's attitude law (poles -1/s, time constant 1 s) settles a half-turn well
+#: within a minute (the mission's ``slew_time``)
+SLEW_TIME = 60.0
+#: [m] lowest altitude the plan (and the entry's prediction) lets the chute open at: height for the
+#: canopy to brake the fall before the powered descent, three times the lowest the landing law asks
+#: for it at (``chute_min_altitude``, 1 km over contact) (the mission's ``chute_altitude``)
+CHUTE_ALTITUDE = 3000.0
+#: [s] longest entry flown by the planner's prediction, from the top of the atmosphere: two hours,
+#: over a low orbit's period (1.8 h at 200 km), so an entry that grazes the atmosphere for a whole
+#: revolution is still followed to its end
+ENTRY_MAX_TIME = 7200.0
+#: [m] an orbit whose apsides differ by under this has no apoapsis worth waiting for: the burn
+#: starts after the slew (the speed at the apoapsis differs from the mean by ~v dr / 4a: 0.24 m/s
+#: for 1 km at 200 km, against a de-orbit burn of tens of m/s)
+CIRCULAR_ORBIT = 1000.0
+#: [-] eccentricity under which an orbit is circular for Kepler's equation (no apoapsis defined)
+CIRCULAR_ECCENTRICITY = 1e-9
+#: Two-body propagation's tolerances: relative 1e-10 and absolute 1e-6 (m, m/s), metres over an
+#: orbit, under the planner's ~1 m precision
+PROPAGATION_RTOL = 1e-10
+PROPAGATION_ATOL = 1e-6
+#: [s] slack on the burn's start against the slew's end: a burn planned to start at the slew's end
+#: (rounding of ~1e-12 s) is not pushed to the next apoapsis
+START_SLACK = 1e-9
+#: [m] a kilometre, for messages
+KM = 1e3
+
 
 @dataclass(frozen=True)
 class EntryVehicle:
@@ -74,7 +102,7 @@ class Orbit:
         e_vec = ((v2 - gm / r) * r_vec - (r_vec @ v_vec) * v_vec) / gm
         e = float(np.linalg.norm(e_vec))
         rp, ra = a * (1 - e), a * (1 + e)
-        if e < 1e-9:
+        if e < CIRCULAR_ECCENTRICITY:
             return cls(a, e, rp, ra, 0.0)
         # eccentric anomaly now, then Kepler's equation for the time to E = pi
         cos_E = (1 - r / a) / e
@@ -127,7 +155,7 @@ def _propagate(position_W: np.ndarray, velocity_W: np.ndarray, t: float, gm: flo
         r = y[:3]
         return np.concatenate([y[3:], -gm * r / np.linalg.norm(r) ** 3])
 
-    sol = solve_ivp(f, (0, t), np.concatenate([position_W, velocity_W]), rtol=1e-10, atol=1e-6)
+    sol = solve_ivp(f, (0, t), np.concatenate([position_W, velocity_W]), rtol=PROPAGATION_RTOL, atol=PROPAGATION_ATOL)
     return sol.y[:3, -1], sol.y[3:, -1]
 
 
@@ -154,15 +182,15 @@ def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehic
     outcome, v_chute, h_chute, peak, v_entry, gamma, _t, _h = entry_flight(
         x, y, z, vx, vy, vz, gm, radius, 0.5 * vehicle.drag_cd * vehicle.drag_area / mass,
         0.5 * vehicle.chute_cd * vehicle.chute_area, atmosphere.surface_density, atmosphere.scale_height,
-        atmosphere.exosphere, vehicle.chute_max_speed, vehicle.chute_max_drag, period, 7200.0, step_scale)
+        atmosphere.exosphere, vehicle.chute_max_speed, vehicle.chute_max_drag, period, ENTRY_MAX_TIME, step_scale)
     if outcome == NO_ENTRY:
         return EntryCheck(False, math.nan, math.nan, 0.0, math.nan, math.nan)
     return EntryCheck(outcome != SKIPPED, v_chute, h_chute, peak, v_entry, gamma)
 
 
 def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
-         slew_time: float = 60.0, periapsis_altitudes: tuple[float, ...] = tuple(range(150_000, 9_999, -5_000)),
-         min_chute_altitude: float = 3_000.0, gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS) -> DeorbitPlan:
+         slew_time: float = SLEW_TIME, periapsis_altitudes: tuple[float, ...] = tuple(range(150_000, 9_999, -5_000)),
+         min_chute_altitude: float = CHUTE_ALTITUDE, gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS) -> DeorbitPlan:
     """The cheapest single retrograde burn whose entry is survivable (see the module docstring).
 
     ``periapsis_altitudes`` are tried from the highest (least fuel) down; the first whose entry is
@@ -174,12 +202,12 @@ def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: E
     orbit = Orbit.of(position_W, velocity_W, gm)
     period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
     # An orbit whose apsides differ by under 1 km has no apoapsis worth waiting for: burn after the slew.
-    circular = orbit.apoapsis_radius - orbit.periapsis_radius < 1_000.0
+    circular = orbit.apoapsis_radius - orbit.periapsis_radius < CIRCULAR_ORBIT
     centre = slew_time if circular else orbit.time_to_apoapsis
     for _ in range(3):
         burn = _cheapest_burn(position_W, velocity_W, mass, vehicle, centre, periapsis_altitudes,
                               min_chute_altitude, gm, radius)
-        if burn.burn_start >= slew_time - 1e-9:
+        if burn.burn_start >= slew_time - START_SLACK:
             return burn
         # centred on ``centre`` the burn would start inside the slew: half a burn later on a
         # circular orbit (every point is alike), the next apoapsis otherwise
@@ -211,5 +239,5 @@ def _cheapest_burn(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, 
                                delta_v=dv, fuel=fuel, fuel_left=fuel_on_board - fuel, periapsis_altitude=hp,
                                entry=entry)
     raise ValueError("no survivable single-burn de-orbit within the fuel on board "
-                     f"({fuel_on_board:.1f} kg) for periapsis altitudes {periapsis_altitudes[0] / 1e3:.0f}-"
-                     f"{periapsis_altitudes[-1] / 1e3:.0f} km")
+                     f"({fuel_on_board:.1f} kg) for periapsis altitudes {periapsis_altitudes[0] / KM:.0f}-"
+                     f"{periapsis_altitudes[-1] / KM:.0f} km")

@@ -78,24 +78,40 @@ import numpy as np
 
 from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, DragModel, GuidanceError, drag_up, solve
 
+#: [-] default thrust bound of the reference and of each period's programme, of ``rho_max``: the
+#: last percent is left for the feedback on the plan's errors (the attitude law's differential)
+THRUST_FRACTION = 0.99
+#: [s] the shortest horizon, once the reference's end is (nearly) passed: three control periods,
+#: steps of 15 ms at ``H = 20``
+MIN_TIME_TO_GO = 0.3
+#: [s] how long a command is flown: the autopilot's 10 Hz control period
+HOLD_TIME = 0.1
+#: [-] end miss weight, times the mass: impulse [kg m/s] per m (or m/s) missed. Against the fuel a
+#: missed metre can save (of order sqrt(2 g x 1 m) ~ 3 m/s per kg) it is large, so the end is met
+#: whenever the limits allow; soft, so a state that cannot reach it still gets a plan
+END_PENALTY = 100.0
+#: [s] the reference's final time needs no more precision than a control period's share: fuel is
+#: flat near its optimum
+REFERENCE_TIME_TOLERANCE = 1e-3
+
 
 @dataclass(frozen=True)
 class MpcSettings:
     """Horizon, margins and end penalty of :class:`DescentMpc` (SI units)."""
 
     horizon_steps: int = 20
-    reference_thrust_fraction: float = 0.99  # the reference's thrust bound, of rho_max (sets the end time)
+    reference_thrust_fraction: float = THRUST_FRACTION  # the reference's thrust bound, of rho_max (sets the end time)
     reference_steps: int = 60
-    plan_thrust_fraction: float = 0.99  # the QP's thrust bound, of rho_max: authority left for the feedback
+    plan_thrust_fraction: float = THRUST_FRACTION  # the QP's thrust bound, of rho_max: authority left for the feedback
     plan_reserve: float = 0.0  # share of that bound the plan keeps in reserve, reserve_time ahead and later
     reserve_time: float = 1.0  # s: the reserve grows linearly to plan_reserve over this much of the plan
-    min_time_to_go: float = 0.3  # s: the shortest horizon, once the reference's end is (nearly) passed
+    min_time_to_go: float = MIN_TIME_TO_GO  # s: the shortest horizon, once the reference's end is (nearly) passed
     # s: how long the command is flown (the control period). Where the plan's steps are shorter (at
     # the end: min_time_to_go / H, 15 ms), the command is the plan's mean over that time: its first
     # 15 ms step alone, flown for 100 ms, let the fall run on (a light first step before full thrust)
     # and the full thrust after it overshot into a climb (0.75 m/s; 1.054 x with a 4 % plan_reserve)
-    hold_time: float = 0.1
-    end_penalty: float = 100.0  # end miss weight, x mass: impulse [kg m/s] per m (or m/s) missed, per kg
+    hold_time: float = HOLD_TIME
+    end_penalty: float = END_PENALTY  # end miss weight, x mass: impulse [kg m/s] per m (or m/s) missed, per kg
     attitude_lag: float = 0.0  # s: time constant of the thrust axis following the command (0: instant)
     # s: in this much before the reference's end, while falling, the vertical command is bounded by
     # the constant deceleration to rest at the target (:meth:`DescentMpc._last_second`; 0: never)
@@ -175,7 +191,7 @@ class DescentMpc:
         reference = solve(DescentProblem(position_L=position_L, velocity_L=velocity_L, mass=mass,
                                          gravity=gravity, limits=ref_limits, target_L=self.target,
                                          free_horizontal=free_horizontal, drag=drag),
-                          steps=st.reference_steps, t_tol=1e-3)
+                          steps=st.reference_steps, t_tol=REFERENCE_TIME_TOLERANCE)
         if free_horizontal:  # a hover wherever the optimum ends it: that point is the target
             self.target = np.array(reference.position_L[-1])
         self.reference = Reference(reference, gravity, self.target)

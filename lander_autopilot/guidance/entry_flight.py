@@ -26,6 +26,19 @@ REACHED_CHUTE, REACHED_GROUND, SKIPPED, NO_ENTRY, TIMED_OUT = 0, 1, 2, 3, 4
 #: the event of reaching the top of the atmosphere from above (located, never returned)
 _AT_TOP = 5
 
+#: [s] step of the coast above the atmosphere: 0.008 rad of a 2 h orbit, RK4's error is metres
+#: after half an orbit
+COAST_STEP = 10.0
+#: [s] longest step inside the atmosphere
+MAX_STEP = 5.0
+#: [-] inside the atmosphere a step moves at most this share of a scale height vertically ...
+HEIGHT_STEP = 0.1
+#: [-] ... and changes the speed by at most this share under drag
+SPEED_STEP = 0.05
+#: an event is located when its function is within this of its bracket's values (relative), or
+#: the bracket within this in time [s]: far under the step's own error
+EVENT_TOLERANCE = 1e-9
+
 
 @njit(cache=True)
 def _deriv(x: float, y: float, z: float, vx: float, vy: float, vz: float, gm: float, radius: float,
@@ -103,7 +116,7 @@ def _locate(s: tuple[float, float, float, float, float, float], dt: float, ev: i
         tm = lo - f_lo * (hi - lo) / (f_hi - f_lo)
         sm = _rk4(s, tm, gm, radius, kd, rho0, inv_h, top)
         fm = _event_value(sm, ev, radius, kc, rho0, inv_h, top, vmax, dmax)
-        if abs(fm) <= 1e-9 * (abs(f0) + abs(f1)) or hi - lo < 1e-9:
+        if abs(fm) <= EVENT_TOLERANCE * (abs(f0) + abs(f1)) or hi - lo < EVENT_TOLERANCE:
             break
         if fm > 0.0:
             lo, f_lo = tm, fm
@@ -130,10 +143,10 @@ def _step_size(s: tuple[float, float, float, float, float, float], radius: float
     vr = abs(x * vx + y * vy + z * vz) / r
     dt = max_step
     if vr > 0.0:
-        dt = min(dt, 0.1 / (inv_h * vr))
+        dt = min(dt, HEIGHT_STEP / (inv_h * vr))
     a_drag = kd * rho0 * math.exp(-h * inv_h) * v * v
     if a_drag > 0.0:
-        dt = min(dt, 0.05 * v / a_drag)
+        dt = min(dt, SPEED_STEP * v / a_drag)
     return dt * scale
 
 
@@ -160,9 +173,8 @@ def entry_flight(x: float, y: float, z: float, vx: float, vy: float, vz: float, 
     s = (x, y, z, vx, vy, vz)
     t = 0.0
     nan = math.nan
-    # the coast above the atmosphere: two-body, to the top (steps of coast_step: 10 s is 0.008 rad
-    # of a 2 h orbit, RK4's error there is metres after half an orbit)
-    coast_step = 10.0
+    # the coast above the atmosphere: two-body, to the top (steps of COAST_STEP)
+    coast_step = COAST_STEP
     chute, h, rv = _events(s, radius, kc, rho0, inv_h, top, vmax, dmax)
     while h > top:
         if t >= coast_max:
@@ -183,7 +195,7 @@ def entry_flight(x: float, y: float, z: float, vx: float, vy: float, vz: float, 
     peak = kd * rho0 * math.exp(-h * inv_h) * v_entry * v_entry if h <= top else 0.0
     t_entry = t
     while t - t_entry < t_max:
-        dt = _step_size(s, radius, kd, rho0, inv_h, top, step_scale, 5.0, coast_step)
+        dt = _step_size(s, radius, kd, rho0, inv_h, top, step_scale, MAX_STEP, coast_step)
         s1 = _rk4(s, dt, gm, radius, kd, rho0, inv_h, top)
         chute1, h1, rv1 = _events(s1, radius, kc, rho0, inv_h, top, vmax, dmax)
         # which event fires first in this step (chute: + to -; ground: h to <= 0; climbing: - to +)

@@ -43,6 +43,36 @@ from typing import Any
 
 import numpy as np
 
+#: [m/s] floor of the airspeed the drag's Jacobian divides by: finite at rest in the air, where the
+#: quadratic drag's derivative is zero anyway
+MIN_AIRSPEED = 1e-9
+#: [-] weight of the strictly convex touch on the thrust's energy (dt-weighted; ~1e-6 of the fuel):
+#: makes the optimum unique so the drag's fixed-point iteration converges
+STRICT_CONVEXITY = 1e-8
+#: [-] the first pass's trust region on the velocity, in units of ``1 + |v0|`` m/s: wide (the
+#: relaxation damps the passes), never binding on a plan that stops the fall
+TRUST_WIDTH = 10.0
+#: [-] log-mass change between passes under which a drag-free programme is converged (a kilogram
+#: in ten thousand tonnes: only the solver's own rounding is left)
+LOG_MASS_TOLERANCE = 1e-10
+#: [m/s^2] the drag the programme flew (linearised) against its trajectory's true drag: 0.3 % of g,
+#: ~0.2 m/s over a 20-s burn, ~0.3 % of its fuel
+DRAG_RESIDUAL = 1e-2
+#: [-] fuel agreement between passes, of the fuel burnt: the passes scatter by ~1e-4 (the optimum
+#: is flat along a coast node's timing), and a yardstick for a 3 % criterion needs 0.1 %
+FUEL_AGREEMENT = 1e-3
+#: [-] a pass whose step is over this fraction of the last one's is not contracting: the
+#: relaxation is halved (Krasnoselskii-Mann averaging), down to MIN_RELAXATION
+CONTRACTION = 0.7
+MIN_RELAXATION = 0.05
+#: [s] the golden-section search's tolerance on the final time (the fuel is flat near its optimum)
+FINAL_TIME_TOLERANCE = 1e-5
+#: [s] shortest final time searched: the bracket's floor for a lander already at rest
+MIN_FINAL_TIME = 1e-2
+#: [-] margin on the bracket's upper end, the burn the fuel allows at the larger of the least thrust
+#: and half the weight (their eq 46): the golden-section search needs a bracket that holds the optimum
+BRACKET_MARGIN = 1.5
+
 
 class GuidanceError(ValueError):
     """A guidance problem with bad inputs, or one with no feasible solution; the message says which."""
@@ -107,7 +137,7 @@ class DragModel:
         """``d a_D / d v`` at each row, shape (n, 3, 3) [1/s]."""
         rho = self.surface_density * np.exp(-np.asarray(position_L)[:, 2] / self.scale_height)
         v = np.asarray(velocity_L) - np.asarray(self.wind_L)
-        s = np.maximum(np.linalg.norm(v, axis=1), 1e-9)
+        s = np.maximum(np.linalg.norm(v, axis=1), MIN_AIRSPEED)
         return -(self.k * rho / mass)[:, None, None] * (s[:, None, None] * np.eye(3)
                                                        + v[:, :, None] * v[:, None, :] / s[:, None, None])
 
@@ -251,7 +281,7 @@ class _FixedTimeProgram:
             # A strictly convex touch (1e-8 of the acceleration's energy, dt-weighted: ~1e-6 of the
             # fuel here) makes the optimum unique, so the drag's fixed-point iteration converges
             # instead of wandering over a flat face of optima (a coast's timing, a hover's place).
-            objective = objective - 1e-8 * self.dt * cp.sum_squares(u)
+            objective = objective - STRICT_CONVEXITY * self.dt * cp.sum_squares(u)
         self.program = cp.Problem(cp.Maximize(objective), cons)
 
     @staticmethod
@@ -291,7 +321,7 @@ class _FixedTimeProgram:
             p0, v0 = self.problem.position_L, self.problem.velocity_L
             v_ref = v0[None, :] * (1 - t / final_time)[:, None]
             r_ref = p0[None, :] + v0[None, :] * (t - t * t / (2 * final_time))[:, None]
-            trust = 10.0 * (1.0 + float(np.linalg.norm(v0)))  # [m/s]: wide; the relaxation below damps
+            trust = TRUST_WIDTH * (1.0 + float(np.linalg.norm(v0)))  # [m/s]: wide; the relaxation below damps
             relax, prev_step = 1.0, None
         best: float | None = None
         converged = drag is None
@@ -318,7 +348,7 @@ class _FixedTimeProgram:
                 return None
             zN = float(self.z.value[-1])
             if drag is None:
-                if best is not None and abs(zN - best) < 1e-10:
+                if best is not None and abs(zN - best) < LOG_MASS_TOLERANCE:
                     break
                 best, z_ref = zN, np.array(self.z.value)
                 continue
@@ -331,14 +361,14 @@ class _FixedTimeProgram:
             # for a 3 % criterion needs 0.1 %.
             lin = self.drag_c0.value + np.einsum("kij,kj->ki", J, v_sol)
             residual = float(np.max(np.abs(drag.acceleration(np.array(self.r.value), v_sol, np.exp(self.z.value)) - lin)))
-            if residual < 1e-2 and best is not None and abs(math.exp(zN) - math.exp(best)) < 1e-3 * (m0 - math.exp(zN)):
+            if residual < DRAG_RESIDUAL and best is not None and abs(math.exp(zN) - math.exp(best)) < FUEL_AGREEMENT * (m0 - math.exp(zN)):
                 converged = True
                 break
             # Fixed-point iteration on the drag's reference, relaxed (Krasnoselskii-Mann averaging)
             # once it stops contracting: undamped, it settles into a 2-cycle when the burn's start
             # moves by a node between passes.
-            if prev_step is not None and step > 0.7 * prev_step:
-                relax = max(0.5 * relax, 0.05)
+            if prev_step is not None and step > CONTRACTION * prev_step:
+                relax = max(0.5 * relax, MIN_RELAXATION)
             prev_step = step
             v_ref = v_ref + relax * (v_sol - v_ref)
             r_ref = r_ref + relax * (np.array(self.r.value) - r_ref)
@@ -359,7 +389,7 @@ def solve_fixed_time(problem: DescentProblem, final_time: float, steps: int = 60
 
 
 def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float] | None = None,
-          t_tol: float = 1e-5) -> DescentSolution:
+          t_tol: float = FINAL_TIME_TOLERANCE) -> DescentSolution:
     """The minimum-fuel descent with free final time (golden-section search on ``t_f``).
 
     ``t_bounds`` defaults to ``[t_lo, t_hi]`` with ``t_lo`` the time to cancel the speed at full
@@ -370,8 +400,8 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     m0 = problem.mass
     if t_bounds is None:
         speed = float(np.linalg.norm(problem.velocity_L))
-        t_lo = max(1e-2, speed * m0 / lim.rho_max) * 0.5
-        t_hi = (m0 - lim.dry_mass) / (lim.alpha * max(lim.rho_min, m0 * problem.gravity * 0.5)) * 1.5
+        t_lo = max(MIN_FINAL_TIME, speed * m0 / lim.rho_max) * 0.5
+        t_hi = (m0 - lim.dry_mass) / (lim.alpha * max(lim.rho_min, m0 * problem.gravity * 0.5)) * BRACKET_MARGIN
         t_bounds = (t_lo, max(t_hi, 2 * t_lo))
     lo, hi = map(float, t_bounds)
     count = 0

@@ -70,6 +70,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec("state_timeout", None, "Wall-clock seconds without a state on /lander/state after which the "
                                      "status reports the state lost (no command is sent without a state). "
                                      "Default: 1 s.", positive, dynamic_typing=True),
+    ParamSpec("flight_id", "", "The launched flight this autopilot belongs to (lander fly sets it); non-empty: "
+                               "/lander/state is taken only from the flight's /lander_sim, another publisher is "
+                               "refused and counted (lander_ros.strangers); empty: from anyone.", string,
+              read_only=True),
 )
 SPECS: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
 PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)

@@ -59,6 +59,11 @@ def _gimbal(v: Any) -> str | None:
     return None if is_number(v) and 0.0 <= v < 1.0 else "must be in [0, 1) (0: use the scene's threshold)"
 
 
+def _flight_nodes(v: Any) -> str | None:
+    ok = isinstance(v, str) and all(n.startswith("/") and len(n) > 1 for n in v.split())
+    return None if ok else "must list absolute node names separated by spaces, e.g. '/autopilot /lander_fly'"
+
+
 def _end_on(v: Any) -> str | None:
     from lander_ros.flight_span import parse_end_on
 
@@ -104,6 +109,15 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec(
         "idle_diagnostics", True, "Publish /diagnostics while started paused, before the first reset, resume or "
         "step; false: a flight's diagnostics start with it (lander fly: the bag holds only the flight's).", boolean,
+    ),
+    ParamSpec(
+        "flight_id", "", "The launched flight this simulator belongs to (lander fly sets it); non-empty: "
+        "/lander/throttle is taken only from flight_nodes and the lander verbs, a stranger is refused and counted "
+        "(lander_ros.strangers); empty: from anyone.", string, True,
+    ),
+    ParamSpec(
+        "flight_nodes", "/autopilot /lander_fly", "With a flight_id: the flight's own nodes, one throttle "
+        "publisher each, separated by spaces.", _flight_nodes, True,
     ),
     ParamSpec("start_paused", False, "Start paused (resume, step or run_until to advance).", boolean, True),
     ParamSpec("world_frame", "mars", "Planet-fixed frame id (the core's world frame).", _frame_id),

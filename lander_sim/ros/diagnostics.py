@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -140,3 +141,18 @@ def to_diagnostic_status(status, health: NodeHealth, *, name: str, hardware_id: 
     values.update({f"rejected.{k}": str(v) for k, v in sorted(health.rejected.items())})
     values.update(extra)
     status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+
+
+def diagnostics_array(health: NodeHealth, *, t: float, name: str, hardware_id: str, extra: dict[str, str]) -> Any:
+    """A ``diagnostic_msgs/DiagnosticArray`` stamped at sim time ``t`` [s] with one status, filled by
+    :func:`to_diagnostic_status` from ``health`` plus ``extra``."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # deferred, as above
+
+    from lander_ros.stamps import fill_stamp
+
+    arr = DiagnosticArray()
+    fill_stamp(arr.header.stamp, t)
+    status = DiagnosticStatus()
+    to_diagnostic_status(status, health, name=name, hardware_id=hardware_id, extra=extra)
+    arr.status = [status]
+    return arr

@@ -38,9 +38,8 @@ class SimControl(Protocol):
     gate: Gate
     pacer: Pacer
 
-    @property
-    def flight(self) -> int:
-        """The flight's number: 0 the node's first, one more at each reset or scene load."""
+    #: The flight's number: 0 the node's first, one more at each reset or scene load.
+    flight: int
 
     @property
     def steps_per_tick(self) -> int:

@@ -3,8 +3,8 @@
 ``SCENE`` may also be a scripted flight (``flights/*.yaml``, see docs/flying.md), which
 brings its own controller, timeline and end condition. Scene, controller and flight names and
 the ``--params`` file are checked before anything starts (one error line, the closest name
-offered). Exit status: 0 landed or time limit, 1 crashed, 2 error, 3 the bag misses messages,
-130 interrupted (see :mod:`lander_tools.fly`).
+offered). Exit status: 0 landed or time limit, 1 crashed, 2 error (also: another flight runs in the
+domain), 3 the bag misses messages or holds another flight's, 130 interrupted (see :mod:`lander_tools.fly`).
 Heavy imports (rclpy) happen in :func:`run`, so ``lander fly --help`` stays fast.
 """
 
@@ -36,6 +36,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="serve the flight live: Foxglove server and student page, URLs printed (docs/live.md)")
     parser.add_argument("--port", type=int, default=8765, metavar="P",
                         help="with --live: Foxglove WebSocket port (default 8765; student page on P + 1)")
+    parser.add_argument("--domain", type=int, metavar="ID",
+                        help="ROS domain of the flight (default: ROS_DOMAIN_ID if set, else one no other flight on "
+                             "this machine uses; printed in the first line, and the lander verbs find it)")
+    parser.add_argument("--network", action="store_true",
+                        help="discover over the network (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET); default: this machine "
+                             "only (LOCALHOST) unless ROS_AUTOMATIC_DISCOVERY_RANGE is set (docs/flying.md)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,9 +81,14 @@ def run(args: argparse.Namespace) -> int:
             plan.lockstep = args.lockstep
         if args.live:
             plan.live = args.port
+        if args.domain is not None:
+            from lander_tools.fly.domain import parse_domain
+
+            plan.domain = parse_domain(str(args.domain), "--domain")
+        plan.network = plan.network or args.network
         plan.__post_init__()
         check_plan(plan)  # every name and file, before anything starts
-    except (LaunchError, ScriptError) as exc:
+    except (LaunchError, ScriptError, ValueError) as exc:
         print(f"lander fly: {exc}", file=sys.stderr)
         return EXIT_ERROR
     progress = Progress(enabled=False if args.no_progress else None, total=plan.duration)

@@ -26,6 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from lander_tools.fly.domain import attach_env
+
+    note = attach_env().note  # the user's own flight's domain (its run file), this machine only by default
+    if note:
+        print(f"lander record: {note}", file=sys.stderr, flush=True)
     if args.duration is not None and not args.whole_flight:
         print("lander record: --duration needs --whole-flight (a recorder alone cannot end a flight)", file=sys.stderr)
         return 2

@@ -37,7 +37,14 @@ function of its own in :mod:`lander_tools.fly.phases`:
    the nodes, autopilot first (SIGINT, SIGTERM, SIGKILL after a grace period);
 6. :func:`close_and_check_bag`: close the bag and compare its counts with what was published
    (the sim's ``FLIGHT_ENDED`` counts; for the autopilot's and this launcher's topics what this
-   launcher's own subscriptions received or it sent): a missing message is an error (exit 3).
+   launcher's own subscriptions received or it sent): a missing message is an error (exit 3), and
+   so is one more than was published (another flight's, ``EXTRA``).
+
+Where it flies on the middleware (:mod:`lander_tools.fly.domain`): the user's ``ROS_DOMAIN_ID`` or
+``--domain``, else a domain no other flight on this machine holds; discovery on this machine only
+unless ``--network`` or the user's ``ROS_AUTOMATIC_DISCOVERY_RANGE``; a run file tells the verbs.
+A second simulator or launcher in the domain refuses the flight before it starts (no bag) and is
+one line when it appears mid-flight; the nodes refuse strangers' inputs (:mod:`lander_ros.strangers`).
 
 Then :func:`~lander_tools.fly.summary.summary` is the summary it prints.
 
@@ -45,6 +52,7 @@ The modules, each one job, in the order they depend on each other:
 
 ==============  ===================================================================================
 ``plan``        what is flown and how it ended: FlightPlan, Action, FlightResult, the exit codes
+``domain``      where it flies: the ROS domain and discovery range, the run file the verbs read
 ``checks``      the plan's names and ``--params`` file checked before anything starts
 ``processes``   the node processes: command lines, parameter files, output forwarding, the stop
 ``composed``    both nodes in one process (``--compose``)
@@ -56,8 +64,8 @@ The modules, each one job, in the order they depend on each other:
 ==============  ===================================================================================
 
 ROS (rclpy, the message types) is imported where it is used, at the top of ``composed``,
-``supervisor``, ``timeline``, ``flight`` and ``phases``; ``plan``, ``checks``, ``processes`` and
-``summary`` are plain Python (scripted flights and sweeps build plans without ROS).
+``supervisor``, ``timeline``, ``flight`` and ``phases``; ``plan``, ``checks``, ``domain``,
+``processes`` and ``summary`` are plain Python (scripted flights and sweeps build plans without ROS).
 
 Exit status (:mod:`lander_tools.fly.plan`, documented in docs/flying.md):
 
@@ -66,7 +74,8 @@ Exit status (:mod:`lander_tools.fly.plan`, documented in docs/flying.md):
 1     crashed
 2     error: a node failed to start or died, bad configuration,
       no state from the simulator
-3     the flight ended as reported, but the bag misses messages that were published
+3     the flight ended as reported, but the bag misses messages that were published,
+      or holds messages this flight did not publish (another flight's)
 130   interrupted by Ctrl-C / SIGTERM (the bag is still closed validly)
 ====  ===========================================================
 """

@@ -39,6 +39,14 @@ class LaunchedFlight:
     stop_reason: list[str] = field(default_factory=list)  #: signals received (SIGINT, SIGTERM)
     stopped: bool = False  #: stop_nodes() ran
     folder: Path | None = None  #: where the nodes' parameter files are written
+    #: The flight's token, the sim's ``flight_id``: the launcher knows its own sim by it.
+    flight_id: str = ""
+    #: Where the flight runs on the middleware (ROS domain, discovery range), set by fly().
+    place: Any = None
+    #: Refused at start-up: another flight runs in the domain (no bag is kept).
+    refused: bool = False
+    #: (sim time [s], what) when another flight's nodes appeared in the domain mid-flight.
+    joined: tuple[float, str] | None = None
 
     def spin(self, timeout: float = 0.05) -> None:
         """One executor pass; raises if a signal arrived or a node process died."""
@@ -57,6 +65,30 @@ class LaunchedFlight:
             if time.monotonic() > deadline:
                 raise LaunchError(f"{what} within {timeout} s")
             self.spin()
+
+
+class DomainTaken(LaunchError):
+    """Another flight runs in this flight's ROS domain: the flight is refused before it starts."""
+
+
+def flight_nodes(f: LaunchedFlight) -> dict[str, int]:
+    """The flight's own nodes by name and how many of each (one more of any: another flight)."""
+    nodes = {"lander_sim": 1, "lander_fly": 1}
+    if f.controller is not None:
+        nodes["autopilot"] = 1
+    return nodes
+
+
+def strangers_in_graph(f: LaunchedFlight) -> str | None:
+    """``"2 /lander_sim nodes"``-like words when the graph holds more of the flight's nodes than it
+    has (another flight in the domain), else None."""
+    assert f.sup is not None
+    seen: dict[str, int] = {}
+    for name, ns in f.sup.node.get_node_names_and_namespaces():
+        if ns in ("/", ""):
+            seen[name] = seen.get(name, 0) + 1
+    over = [f"{seen[n]} /{n} nodes" for n, k in flight_nodes(f).items() if seen.get(n, 0) > k]
+    return ", ".join(over) or None
 
 
 def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:

@@ -3,6 +3,8 @@ docstring, :mod:`lander_tools.fly`, says what each does and why)."""
 from __future__ import annotations
 
 import os
+import secrets
+import shutil
 import signal
 import sys
 import tempfile
@@ -13,20 +15,24 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import rclpy
+from rcl_interfaces.srv import GetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 from lander_interfaces.srv import Reset
-from lander_ros.flight_span import parse_matched, shortfalls
+from lander_ros.flight_span import parse_matched, shortfalls, surplus
 from lander_tools.fly.checks import check_plan, scene_end_time
+from lander_tools.fly.domain import FlightPlace, choose_place, write_run_file
 from lander_tools.fly.flight import (
+    DomainTaken,
     Interrupted,
     LaunchedFlight,
     NodeDied,
     expected_publishers,
     expected_subscribers,
     reference_counts,
+    strangers_in_graph,
 )
 from lander_tools.fly.plan import (
     EXIT_CRASHED,
@@ -34,7 +40,6 @@ from lander_tools.fly.plan import (
     EXIT_INCOMPLETE_BAG,
     EXIT_INTERRUPTED,
     EXIT_OK,
-    SIM_NODE,
     Action,
     FlightPlan,
     FlightResult,
@@ -54,6 +59,8 @@ RESET_ATTEMPTS = 3
 DELIVERY_TIMEOUT = 10.0
 #: Wall seconds without a new state (while not paused) after which the flight is an error.
 STALL_TIMEOUT = 30.0
+#: Wall seconds between two looks at the graph for another flight's nodes while flying.
+GRAPH_WATCH_PERIOD = 0.5
 
 
 def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: dict[str, str] | None = None) -> FlightResult:
@@ -68,13 +75,18 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
     wall0 = time.monotonic()
     try:
         controller = check_plan(plan)
-    except LaunchError as exc:
+        place, lock = choose_place(os.environ if env is None else env, plan.domain, plan.network)
+    except (LaunchError, ValueError) as exc:
         progress.finish()
         return FlightResult("error", EXIT_ERROR, 0.0, 0, str(exc))
-    f = LaunchedFlight(plan, controller, out, progress, env)
-    with _signals_stop(f), tempfile.TemporaryDirectory(prefix="lander-fly-") as folder:
-        f.folder = Path(folder)
-        result = _fly_phases(f)
+    f = LaunchedFlight(plan, controller, out, progress, env, flight_id=secrets.token_hex(8), place=place)
+    try:
+        with (_signals_stop(f), _in_place(f, place), tempfile.TemporaryDirectory(prefix="lander-fly-") as folder):
+            f.folder = Path(folder)
+            result = _fly_phases(f)
+    finally:
+        if lock is not None:
+            lock.release()
     result.wall_time = time.monotonic() - wall0
     _add_what_was_watched(f, result)
     return result
@@ -115,6 +127,31 @@ def _fly_phases(f: LaunchedFlight) -> FlightResult:
 
 
 @contextmanager
+def _in_place(f: LaunchedFlight, place: FlightPlace) -> Iterator[None]:
+    """The flight's ROS domain and discovery range in this process's environment (its own node)
+    and the nodes' (``f.env``), and the run file that tells the user's verbs where it is, while
+    the block runs; the environment as it was afterwards."""
+    saved = {k: os.environ.get(k) for k in place.env()}
+    os.environ.update(place.env())
+    if f.env is not None:
+        f.env = {**f.env, **place.env()}
+    try:
+        run_file: Path | None = write_run_file(place, f.plan.scene)
+    except OSError:
+        run_file = None  # the verbs then need ROS_DOMAIN_ID; the flight itself is unaffected
+    try:
+        yield
+    finally:
+        if run_file is not None:
+            run_file.unlink(missing_ok=True)
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@contextmanager
 def _signals_stop(f: LaunchedFlight) -> Iterator[None]:
     """SIGINT and SIGTERM stop the flight (noted in ``f.stop_reason``; the next spin raises
     :class:`Interrupted`) while the block runs; the previous handlers afterwards."""
@@ -133,7 +170,8 @@ def _signals_stop(f: LaunchedFlight) -> Iterator[None]:
 def start_nodes(f: LaunchedFlight) -> None:
     """Phase 1: this process's node (and recorder), then the node processes, paused."""
     assert f.folder is not None
-    cmds = node_commands(f.plan, f.controller, f.folder)
+    f.out.write(f"[fly] {f.place.describe()}\n")
+    cmds = node_commands(f.plan, f.controller, f.folder, f.flight_id)
     rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
     f.sup = Supervisor(f.plan, f.controller, f.out, f.progress)
     f.executor = SingleThreadedExecutor()
@@ -160,15 +198,21 @@ def wait_until_matched(f: LaunchedFlight) -> None:
     assert sup is not None
     need_sim, need_here = expected_subscribers(f), expected_publishers(f)
     waiting: list[str] = []
+    own_sim: list[bool] = []
 
     def matched() -> bool:
-        sims = [x for x, _ in sup.node.get_node_names_and_namespaces() if x == SIM_NODE]
-        if len(sims) > 1:
-            raise LaunchError(
-                f"{len(sims)} simulator nodes in ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}: "
-                "another flight is running there; set ROS_DOMAIN_ID (0-101) to keep flights apart"
-            )
+        _refuse_if_taken(f, strangers_in_graph(f))
         waiting[:] = []
+        if not own_sim:  # the simulator that answers must be this flight's (its flight_id)
+            if not sup.cli_sim_get.service_is_ready():
+                waiting.append("the sim's parameters")
+                return False
+            res = call(f.executor, sup.cli_sim_get, GetParameters.Request(names=["flight_id"]), STARTUP_TIMEOUT,
+                       "the sim's flight_id")
+            theirs = res.values[0].string_value if res.values else ""
+            if theirs != f.flight_id:
+                _refuse_if_taken(f, "a simulator of another flight answers")
+            own_sim.append(True)
         for topic, sub in sup.subs.items():
             if sub.get_publisher_count() < need_here.get(topic, 1):
                 waiting.append(f"launcher <- {topic}")
@@ -203,6 +247,30 @@ def wait_until_matched(f: LaunchedFlight) -> None:
         if time.monotonic() > deadline:
             raise LaunchError(f"nodes not matched within {STARTUP_TIMEOUT} s (still waiting for {', '.join(waiting)})")
         f.spin()
+
+
+def _refuse_if_taken(f: LaunchedFlight, what: str | None) -> None:
+    """DomainTaken naming ``what`` (another flight's nodes seen), unless it is None."""
+    if what is None:
+        return
+    f.refused = True
+    domain = f.place.domain if f.place is not None else os.environ.get("ROS_DOMAIN_ID", "0")
+    raise DomainTaken(f"another flight is running in ROS_DOMAIN_ID={domain} ({what}): refused, nothing flown or "
+                      "recorded; unset ROS_DOMAIN_ID (lander fly then picks a free domain) or choose another")
+
+
+def _watch_graph(f: LaunchedFlight) -> None:
+    """While flying: another flight's nodes appearing in the domain are said once, in one line."""
+    sup = f.sup
+    assert sup is not None
+    if f.joined is not None:
+        return
+    what = strangers_in_graph(f)
+    if what is not None:
+        f.joined = (sup.t, what)
+        f.out.write(f"[fly] another flight joined ROS_DOMAIN_ID={f.place.domain if f.place else '?'} at t = "
+                    f"{sup.t:.2f} s ({what}): its messages are not this flight's; the sim refuses its throttles "
+                    "and the bag check names what it added\n")
 
 
 def reset_flight(f: LaunchedFlight) -> list[Stop]:
@@ -251,7 +319,11 @@ def run_to_end(f: LaunchedFlight, stops: list[Stop]) -> None:
     assert sup is not None
     call(f.executor, sup.cli_resume, Trigger.Request(), STARTUP_TIMEOUT, "resume")
     sup.last_state_wall = time.monotonic()
+    next_look = time.monotonic()
     while sup.flight_end is None:
+        if time.monotonic() >= next_look:
+            next_look = time.monotonic() + GRAPH_WATCH_PERIOD
+            _watch_graph(f)
         if time.monotonic() - sup.last_state_wall > STALL_TIMEOUT:
             raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
         f.spin()
@@ -305,6 +377,12 @@ def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
     sup = f.sup
     if sup is None or sup.recorder is None:
         return
+    if f.refused:  # whatever it holds is the other flight's
+        sup.recorder.close()
+        if f.plan.record is not None:
+            shutil.rmtree(f.plan.record, ignore_errors=True)
+        result.bag_check = "no bag: the flight was refused"
+        return
     sup.recorder.writer.set_custom_data("outcome", result.outcome)
     counts = sup.recorder.close()
     result.counts, result.bag = counts, f.plan.record
@@ -312,13 +390,24 @@ def close_and_check_bag(f: LaunchedFlight, result: FlightResult) -> None:
     if sup.flight_end is None:
         result.bag_check = "not checked: the flight did not reach its end"
         return
-    bad = shortfalls(reference_counts(sup), counts)
-    if bad:
-        result.bag_check = "INCOMPLETE: " + ", ".join(bad) + " published"
+    reference = reference_counts(sup)
+    missing, extra = shortfalls(reference, counts), surplus(reference, counts)
+    checks = []
+    if missing:
+        checks.append("INCOMPLETE: " + ", ".join(missing) + " published")
+    if extra:
+        whose = ("another flight's" if f.joined is not None or sup.strangers
+                 else "not published in this flight (another flight's, or a second start)")
+        checks.append(f"EXTRA messages, {whose}: " + ", ".join(extra) + " published by this flight")
+    elif f.joined is not None or sup.strangers:
+        checks.append("another flight was in the domain (its messages on topics anyone may publish on, "
+                      "e.g. /autopilot/status, cannot be told apart by their counts)")
+    if missing or extra:
         if result.exit_code in (EXIT_OK, EXIT_CRASHED):
             result.exit_code = EXIT_INCOMPLETE_BAG
-    else:
-        result.bag_check = "complete: every message published in the flight is in it"
+    if not missing:
+        checks.insert(0, "complete: every message published in the flight is in it")
+    result.bag_check = "; ".join(checks)
 
 
 def _ended(f: LaunchedFlight) -> FlightResult:

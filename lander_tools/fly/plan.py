@@ -67,6 +67,10 @@ class FlightPlan:
     end_on: tuple[str, ...] = ("landed", "crashed")
     meta: dict[str, str] = field(default_factory=dict)
     live: int | None = None  #: Foxglove port of a `lander live` started with the flight (docs/live.md); None: none
+    #: ROS domain of the flight (``--domain``); None: the user's ROS_DOMAIN_ID, else one free on this
+    #: machine (lander_tools.fly.domain). It changes no message of the flight.
+    domain: int | None = None
+    network: bool = False  #: discover over the network (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET), not this machine only
 
     def __post_init__(self) -> None:
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):

@@ -100,11 +100,12 @@ def _params_yaml(node: str, params: dict[str, Any], folder: Path) -> Path:
     return path
 
 
-def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dict[str, list[str]]:
+def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight_id: str = "") -> dict[str, list[str]]:
     """The command lines of the node processes (``sim``, ``autopilot`` or ``composed``).
 
     Each node gets one parameters file: its section of the user's ``--params`` file
-    (:func:`read_params_file`), then the flight's settings, which win."""
+    (:func:`read_params_file`), then the flight's settings, which win. ``flight_id``: the sim then
+    takes throttles only from the flight's own nodes (lander_ros.strangers)."""
     user = read_params_file(plan.params_file) if plan.params_file is not None else {SIM_NODE: {}, AUTOPILOT_NODE: {}}
     sim_params = dict(user[SIM_NODE])
     sim_params.update({
@@ -113,6 +114,9 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
         "end_time": float(plan.duration) if plan.duration is not None else -1.0,
         "end_on": ",".join(plan.end_on), "idle_diagnostics": False,
     })
+    if flight_id:
+        sim_params["flight_id"] = flight_id
+        sim_params["flight_nodes"] = "/autopilot /lander_fly" if controller is not None else "/lander_fly"
     if controller is not None:
         sim_params["lockstep"] = plan.lockstep is not False
         if sim_params["lockstep"] and plan.speed == 0:
@@ -128,6 +132,8 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path) -> dic
     if controller is not None:
         ap_params: dict[str, Any] = dict(user[AUTOPILOT_NODE])
         ap_params.update({"scene": plan.scene, "controller": controller, "use_sim_time": True})
+        if flight_id:
+            ap_params["flight_id"] = flight_id
         if plan.controller_params:
             ap_params["controller_params"] = yaml.safe_dump(
                 dict(plan.controller_params), default_flow_style=True, sort_keys=True

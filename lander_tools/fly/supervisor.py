@@ -20,6 +20,7 @@ from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, Thr
 from lander_interfaces.srv import Reset, SwitchController
 from lander_ros.flight_span import FlightEnd
 from lander_ros.stamps import stamp_to_seconds
+from lander_ros.strangers import STRANGER_KIND
 from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
 from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
 
@@ -85,6 +86,7 @@ class Supervisor:
         self.touchdown_class = ""  #: safe / hard / crash, from the event's kind
         self.gimbal_locks: list[float] = []  #: sim times [s] of GIMBAL_LOCK events (printed once, counted)
         self.mode_changes: list[float] = []  #: sim times [s] of MODE_CHANGED events (the first MODE_LINES printed)
+        self.strangers: list[str] = []  #: the sim's refusals of strangers' throttles (one event per stranger)
         self.pending = sorted(plan.timeline, key=lambda a: a.t)
         self.held_throttle: Action | None = None
         self.futures: list[tuple[str, Any]] = []  #: service calls started by apply(), by name
@@ -103,12 +105,13 @@ class Supervisor:
         self.cli_autopilot_matched: Any = n.create_client(Trigger, "/autopilot/matched")
         self.cli_stab: Any = n.create_client(SetBool, "/lander/set_stabiliser")
         self.cli_chute: Any = n.create_client(Trigger, "/lander/deploy_parachute")
+        #: the sim's parameters: its flight_id says whether it is this flight's (wait_until_matched)
+        self.cli_sim_get: Any = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
         self.cli_switch: Any = None
         if self.controller is not None:
             self.cli_switch = n.create_client(SwitchController, "/autopilot/switch_controller")
             self.cli_ap_get: Any = n.create_client(GetParameters, "/autopilot/get_parameters")
             self.cli_sim_set: Any = n.create_client(SetParameters, f"/{SIM_NODE}/set_parameters")
-            self.cli_sim_get: Any = n.create_client(GetParameters, f"/{SIM_NODE}/get_parameters")
             n.create_subscription(Clock, "/clock", self._on_clock, RELIABLE)
 
     def _create_watch(self) -> dict[str, Any]:
@@ -205,6 +208,8 @@ class Supervisor:
             self.mode_changes.append(t)
             if len(self.mode_changes) > MODE_LINES:
                 return
+        if msg.kind == E.INPUT_REJECTED and str(msg.detail).startswith(STRANGER_KIND + ":"):
+            self.strangers.append(str(msg.detail))  # announced once per stranger (the sim's own log line)
         if msg.kind in PRINTED_EVENTS:
             self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
 

@@ -20,6 +20,9 @@ from lander_tools.live.link import (
 
 EXIT_REFUSED = 1
 EXIT_NO_FLIGHT = 3
+#: Wall seconds to wait for the nodes of a flight the user's run file says is running (discovery
+#: takes up to ~3 s with several processes starting on 2 cores; more under heavier load).
+RUNNING_FLIGHT_WAIT = 30.0
 #: Wall seconds the link's ROS teardown may take in a ``lander`` process (normally milliseconds).
 CLOSE_TIMEOUT = 10.0
 
@@ -38,6 +41,13 @@ def run_verb(verb: str, action: Callable[[FlightLink], Outcome], needs: str = SI
     The line is printed before the link's ROS teardown, and in a ``lander`` process that teardown
     is bounded (:func:`_bounded_close`): Fast DDS can deadlock destroying a participant while it
     removes a remote one (seen in CI: a verb hung in ``destroy_node`` as other verbs exited)."""
+    from lander_tools.fly.domain import attach_env
+
+    found = attach_env()  # the user's own flight's domain (its run file), this machine only by default
+    if found.note:
+        print(f"lander {verb}: {found.note}", file=sys.stderr, flush=True)
+    if found.flight is not None and wait == DISCOVERY_TIMEOUT:
+        wait = RUNNING_FLIGHT_WAIT  # it runs (its run file says so): a loaded machine only slows discovery
     link = FlightLink(f"lander_{verb}")
     try:
         try:

@@ -258,8 +258,8 @@ def _chute_open(sim: Any) -> bool:
 
 def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float,
                     balanced: bool = False, end_band: float = 0.0, end_speed: float = 0.0) -> float:
-    """The issue-14 yardstick of a flight: the minimum fuel [kg] from its handover state (world frame
-    ``r_W``, ``v_W``, fuel, chute open) to rest at ``demand_altitude`` [m], with the flown vehicle (its
+    """The fuel yardstick of a flight (docs/deorbit.md, "The fuel yardstick"): the minimum fuel [kg]
+    from its handover state (world frame ``r_W``, ``v_W``, fuel, chute open) to rest at ``demand_altitude`` [m], with the flown vehicle (its
     thrust, mass and cant dispersions), the flown atmosphere's surface density and the scene's mean
     wind (the gusts are not modelled: they average out over the burn). 30 nodes, final time to 1e-3 s (the fuel agrees with 60 nodes to ~1e-6 from the
     common handover case, bench/deorbit_fuel.py uses 60). NaN when the convex problem is infeasible.

@@ -4,14 +4,11 @@ synthetic data (exact) and in a dispersed core-only flight (against the case's t
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lander_autopilot.controllers.calibration import ChuteDragFit, ThrustCalibration
-
-SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
 
 
 def test_thrust_calibration_is_the_ratio_of_measured_to_modelled_thrust_acceleration():
@@ -81,24 +78,18 @@ def test_chute_drag_fit_separates_the_vertical_wind_from_the_scale_that_a_termin
     assert terminal.solve(1.0, np.zeros(3)) is None
 
 
-#: The 200 km sweep's case with thin air (-12.9 %) and a downdraft (1.1 m/s) at the site
-THIN_AIR_DOWNDRAFT = 188
-
-
 def test_a_dispersed_flight_measures_its_thrust_in_the_burn_and_fits_its_air_under_the_chute():
-    """A named regression of the 200 km sweep, thin air in a downdraft (its case 188: thrust -0.55 %,
-    dry mass +1.1 %, density -12.9 %, 1.13 m/s of downdraft at the site), flown core-only to its
-    powered descent: the law's estimates against the case's truth."""
-    from lander_autopilot.controllers.deorbit import Phase
-    from lander_tools.sweep.dispersion import draw_case
-    from lander_tools.sweep.flight import flown_periods
-    from lander_tools.sweep.spec import load_spec
+    """A named regression from 200 km, thin air in a downdraft (thrust -0.55 %, dry mass +1.1 %,
+    density -12.9 %, 1.13 m/s of downdraft at the site), flown core-only to its powered descent:
+    the law's estimates against the flight's truth."""
+    from deorbit_regressions import THIN_AIR_DOWNDRAFT, flown
 
-    spec = load_spec(SPEC)
-    case = draw_case(spec, THIN_AIR_DOWNDRAFT, 4)
+    from lander_autopilot.controllers.deorbit import Phase
+
+    case = THIN_AIR_DOWNDRAFT.flight_case()
     wind_W = np.asarray(case.wind_mean_W)
     assert case.density_error < -0.1  # the regression this is: thin air ...
-    for _t, state, ctrl, _sim in flown_periods(spec, 0, THIN_AIR_DOWNDRAFT):  # noqa: B007 - state, ctrl: read after the loop
+    for state, ctrl, _sim in flown(THIN_AIR_DOWNDRAFT, 0):  # noqa: B007 - state, ctrl: read after the loop
         if ctrl.phase is Phase.POWERED:
             break
     else:

@@ -77,14 +77,14 @@ def test_braking_limb_runs_on_the_collective_left():
     mass, g = vehicle.mass(40.0), 3.7
     full = law.braking_acceleration(mass, g)
     law.headroom.share = 0.08
-    assert law.braking_acceleration(mass, g) == pytest.approx(law.brake_fraction * (0.92 * law.T_v / mass - g))
+    assert law.braking_acceleration(mass, g) == pytest.approx(law.law.brake_fraction * (0.92 * law.law.T_v / mass - g))
     assert law.braking_acceleration(mass, g) < full
 
 
 def test_braking_limb_ends_at_rest_inside_the_band_above_the_floor():
     """The limb's descent-rate demand is 0 at ``floor + stop_above`` (inside the 2 m band), and climbs back under it."""
     law = DeorbitController(lander("canted")).descent
-    law.floor, law.mode = DEMAND.altitude, "braking"
+    law.floor, law.law.mode = DEMAND.altitude, "braking"
     stop = DEMAND.altitude + law.stop_above
     assert 0.0 < law.stop_above < 2.0
     r = c.MARS_RADIUS + stop
@@ -109,9 +109,9 @@ def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded()
                       euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
     flown = math.tan(tilt)
     wanted = np.array([0.1, -0.02])
-    law.floor, law.mode = DEMAND.altitude, "coast"
+    law.floor, law.law.mode = DEMAND.altitude, "coast"
     assert law.axis_bias(0.0, state, L, wanted) is None
-    law.mode = "braking"
+    law.law.mode = "braking"
     assert np.array_equal(law.axis_bias(0.0, state, L, wanted), np.zeros(2))  # no history yet
     bias = law.axis_bias(0.1, state, L, wanted)
     expected = 0.1 / law.axis_time * (wanted - np.array([flown, 0.0]))
@@ -119,7 +119,7 @@ def test_axis_bias_integrates_what_the_attitude_law_flies_short_and_is_bounded()
     for k in range(2, 200):
         bias = law.axis_bias(0.1 * k, state, L, wanted)
     assert float(np.linalg.norm(bias)) == pytest.approx(law.axis_limit, rel=1e-12)
-    law.mode = "coast"
+    law.law.mode = "coast"
     assert law.axis_bias(20.0, state, L, wanted) is None
 
 
@@ -160,7 +160,7 @@ def test_hover_capture_is_at_rest_in_the_band_at_once_and_stays_so():
 
 def test_hover_capture_keeps_the_climb_rate_inside_the_band_under_what_the_drift_leaves():
     """Inside the band the climb rate allowed shrinks with the ground speed, so the total speed keeps
-    under ``AT_REST * speed``: at 0.18 m/s of drift (200 km sweep's case 161) the law holds the
+    under ``AT_REST * speed``: at 0.18 m/s of drift (a dispersed flight from 200 km began its hover so) the law holds the
     altitude instead of descending at 0.1 m/s, 0.21 m/s in all, outside the band's speed."""
     capture = HoverCapture(lander("canted"))
     capture.band, capture.speed = 2.0, 0.2
@@ -168,16 +168,16 @@ def test_hover_capture_keeps_the_climb_rate_inside_the_band_under_what_the_drift
     r = c.MARS_RADIUS + h
     g = c.GM_MARS / (r * r)
     # still air, at rest: the approach at APPROACH * speed (0.1 m/s) toward the demand
-    capture.v_local = np.zeros(3)
+    capture.law.v_local = np.zeros(3)
     assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(
         g + capture.RATE_GAIN * (-capture.APPROACH * capture.speed), rel=1e-12)
     # 0.12 m/s of drift: what is left of AT_REST * speed (0.16 m/s), sqrt(0.16^2 - 0.12^2) ~ 0.106, caps
     # nothing yet; at 0.15 m/s it caps the approach at sqrt(0.16^2 - 0.15^2) ~ 0.056 m/s
-    capture.v_local = np.array([0.09, -0.12, 0.0])  # ENU, 0.15 m/s
+    capture.law.v_local = np.array([0.09, -0.12, 0.0])  # ENU, 0.15 m/s
     allowed = math.sqrt((capture.AT_REST * capture.speed) ** 2 - 0.15**2)
     assert capture.vertical_acceleration(0.0, h, 0.0, DEMAND) == pytest.approx(g - capture.RATE_GAIN * allowed, rel=1e-9)
     # 0.18 m/s: nothing left, the climb rate is brought to zero where it is
-    capture.v_local = np.array([0.0, -0.18, 0.0])
+    capture.law.v_local = np.array([0.0, -0.18, 0.0])
     assert capture.vertical_acceleration(0.0, h, -0.16, DEMAND) == pytest.approx(g + capture.RATE_GAIN * 0.16, rel=1e-12)
 
 
@@ -186,7 +186,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     wind the braking planned on (its integral preset), not from zero."""
     controller = DeorbitController(lander("canted"))
     law, hover = controller.descent, controller.hover
-    law.drag_k, law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
+    law.drag_k, law.law.mass = 20.0, 700.0  # chute out: sum 1/2 Cd A [m^2], mass [kg]
     law.drift_W = np.array([0.0, -5.0, 0.0])  # no air fitted: the drift is the wind (world = ENU here)
     L = np.eye(3)
     h = 500.0
@@ -195,7 +195,7 @@ def test_hover_takes_over_the_wind_from_the_braking():
     assert drag == pytest.approx([0.0, -20.0 * MARS_ATMOSPHERE.density(h) / 700.0 * 25.0], rel=1e-12)
     state = StateView(t=0.0, r_W=np.array([0.0, 0.0, c.MARS_RADIUS + h]), v_W=np.zeros(3), q=np.array([1.0, 0.0, 0.0, 0.0]),
                       euler=np.zeros(3), omega_B=np.zeros(3), fuel=40.0)
-    assert np.array_equal(hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)), np.zeros(2))
+    assert np.array_equal(hover.law.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)), np.zeros(2))
     hover.take_over(drag)
     # no velocity error: the thrust's horizontal acceleration asked for is the drag's opposite
-    assert hover.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)) == pytest.approx(-drag, rel=1e-12)
+    assert hover.law.horizontal_acceleration(state, L, h, np.zeros(3), np.zeros(2)) == pytest.approx(-drag, rel=1e-12)

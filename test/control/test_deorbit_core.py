@@ -102,7 +102,7 @@ def _check_orbit_phases(sc, ctrl, log):
     rho = c.ATMOSPHERE_SURFACE_DENSITY * math.exp(-h / c.ATMOSPHERE_SCALE_HEIGHT)
     drag = 0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACHUTE_RADIUS**2 * rho * v * v
     assert v <= ctrl.chute_margin * c.PARACHUTE_MAX_SPEED and drag <= ctrl.chute_margin * c.PARACHUTE_MAX_DRAG
-    assert h >= ctrl.descent.chute_min_altitude
+    assert h >= ctrl.descent.law.chute_min_altitude
     # powered descent: at the first step the descent law brakes (leaves its coast mode), never
     # while the chute alone still decelerates harder than the law's braking limb would
     t_pow = steps[4][0]

@@ -10,68 +10,38 @@ parameter to show the property is the part's.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 import pytest
+from deorbit_regressions import (
+    DENSE_GUSTY,
+    DRIFT,
+    EAST_NORTH_WIND,
+    HELD_OUT_WIND,
+    LATE_END,
+    NORTH_WIND,
+    OWN_TORQUE,
+    SHORT_STEPS,
+    STEADY_WIND,
+    STRONG_WIND,
+    THIN_AIR_DOWNDRAFT,
+    WEAK_THRUSTER_DRIFT,
+    WINDY_DOWNDRAFT,
+    Regression,
+    flown,
+)
 
 from lander_autopilot.controllers import Demand
 from lander_autopilot.controllers.deorbit import Phase
 from lander_autopilot.controllers.deorbit.mission import CHUTE_AND_BODY_DRAG_K
 from lander_sim.physics import constants as c
 from lander_sim.physics.rotation import quat_to_matrix
-from lander_sim.physics.state import StateView
-from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import nominal_scene
-from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.flight import flown_periods
 from lander_tools.sweep.metrics import in_hover_band
 from lander_tools.sweep.spec import load_spec
 
-SPEC = Path(__file__).resolve().parents[2] / "sweeps" / "deorbit-200km.yaml"
-SPEC_0 = SPEC.with_name("deorbit.yaml")  # scenario 0's orbit
 DEMAND = Demand(altitude=500.0)
-
-
-class Regression(NamedTuple):
-    """A dispersed flight kept as a regression: what makes it hard, its sweep and its case there."""
-
-    what: str
-    spec: Path
-    case: int
-
-
-STRONG_WIND = Regression("5.6 m/s of wind under the canopy", SPEC, 88)
-STEADY_WIND = Regression("4.4 m/s of steady wind, small gusts", SPEC, 55)
-WINDY_DOWNDRAFT = Regression("5.4 m/s of wind, 3.9 m/s of it downdraft: a thruster pinned at full braking", SPEC, 196)
-WEAK_THRUSTER_DRIFT = Regression("5.6 m/s of drift under the canopy and a thruster 3 % weak", SPEC, 261)
-DRIFT = Regression("2.5 m/s of drift under the canopy, 2.9 m/s of horizontal wind", SPEC, 38)
-THIN_AIR_DOWNDRAFT = Regression("density -12.9 %, 1.1 m/s of downdraft", SPEC, 188)
-NORTH_WIND = Regression("6.2 m/s of wind from the north: the braking rides the mixer's ceiling", SPEC, 140)
-EAST_NORTH_WIND = Regression("5.2 m/s east and 3.3 m/s north of wind", SPEC, 164)
-DENSE_GUSTY = Regression("4.7 m/s of wind, 1.3 x the model's drag", SPEC, 24)
-HELD_OUT_WIND = Regression("a windy flight past the 200 km sweep's 200", SPEC, 233)
-SHORT_STEPS = Regression("scenario 0's orbit: the programme's last steps 15 ms", SPEC_0, 96)
-OWN_TORQUE = Regression("scenario 0's orbit: the thrusters' own torque takes ~5 % of the collective", SPEC_0, 78)
-LATE_END = Regression("scenario 0's orbit, past its sweep's 200: the plan's end recedes in its last second", SPEC_0, 203)
-
-
-def _wind(r: Regression) -> float:
-    """The regression's mean wind [m/s]."""
-    spec = load_spec(r.spec)
-    return float(np.linalg.norm(draw_case(spec, r.case, nominal_scene(spec).vehicle.n_thrusters).wind_mean_W))
-
-
-def _flown(r: Regression, controller_index: int, **params: object) -> Iterator[tuple[StateView, Any, Simulation]]:
-    """The regression's flight with its sweep's controller ``controller_index`` (0 scheduled, 1 MPC;
-    ``params`` over the sweep's), flown as the sweep flies it (:func:`flown_periods`), a control
-    period at a time: yields the state the law was given, the law after its update, and the
-    simulation after the period; the spec's duration at most."""
-    for _t, s, ctrl, sim in flown_periods(load_spec(r.spec), controller_index, r.case, **params):
-        assert sim.phase.name == "FLYING", sim.phase
-        yield s, ctrl, sim
 
 
 @pytest.mark.slow  # ~2500 s of simulated flight, ~6 s
@@ -81,27 +51,27 @@ def test_windy_descent_keeps_its_thrusters_and_heading_and_stops_at_the_hover():
     (turning back to east takes two thrusters' differential for seconds of the braking) and handed
     to the hover, and the fall stops at the hover, not tens of metres under it."""
     nominal = nominal_scene(load_spec(STRONG_WIND.spec))
-    assert _wind(STRONG_WIND) > 5.0
+    assert STRONG_WIND.wind > 5.0
     yaw_rates: list[float] = []
     heading_at_braking = None
-    for s, ctrl, sim in _flown(STRONG_WIND, 0):  # noqa: B007 - sim: read after the loop (the period the hover began)
+    for s, ctrl, sim in flown(STRONG_WIND, 0):  # noqa: B007 - sim: read after the loop (the period the hover began)
         if ctrl.phase is Phase.POWERED:
             yaw_rates.append(abs(float(s.omega_B[2])))
-            if heading_at_braking is None and ctrl.descent.heading_W is not None:
-                heading_at_braking = ctrl.descent.heading_W.copy()
+            if heading_at_braking is None and ctrl.descent.law.heading_W is not None:
+                heading_at_braking = ctrl.descent.law.heading_W.copy()
         if ctrl.phase is Phase.HOVER:
             break
     assert ctrl.phase is Phase.HOVER
     # no false alarm under the canopy: all four thrusters stay in the allocation, no spin
-    assert ctrl.descent.allocation is None and ctrl.descent.spin is None
+    assert ctrl.descent.law.allocation is None and ctrl.descent.law.spin is None
     # the heading the braking began with is held (no yaw turn) and handed to the hover law
     assert heading_at_braking is not None
-    np.testing.assert_array_equal(ctrl.hover.heading_W, heading_at_braking)
+    np.testing.assert_array_equal(ctrl.hover.law.heading_W, heading_at_braking)
     assert max(yaw_rates) < 0.1  # rad/s: the yaw rate is never spun up
     # the fall is stopped near the floor: within a period's braking at full thrust, not tens of metres under
     s = sim.state()
     h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
-    axial = ctrl.descent.T_v / nominal.vehicle.mass(s.fuel)
+    axial = ctrl.descent.law.T_v / nominal.vehicle.mass(s.fuel)
     assert h > 500.0 - 0.5 * axial * 1.0**2, h  # ~4 m: a second of full-thrust deceleration
 
 
@@ -110,7 +80,7 @@ def _fly_mpc_to_the_band(r: Regression, **params: object) -> tuple[float, float]
     fuel from the powered descent's start to the first instant in the hover band [kg])."""
     end = load_spec(r.spec).end
     fuel0 = drift = None
-    for s, ctrl, _sim in _flown(r, 1, **params):
+    for s, ctrl, _sim in flown(r, 1, **params):
         if ctrl.phase is Phase.POWERED and fuel0 is None:
             fuel0 = s.fuel
         if ctrl.phase is Phase.HOVER:
@@ -133,7 +103,7 @@ def test_mpc_planning_with_the_attitude_lag_brakes_the_drift_before_the_hover():
     fuel. Both flights without the braking's integral action on the axis (``axis_limit`` 0), which
     would hide part of the lag's effect (it flies the axis nearer the tilt asked for)."""
     spec = load_spec(STEADY_WIND.spec)
-    assert _wind(STEADY_WIND) > 4.0
+    assert STEADY_WIND.wind > 4.0
     drift_instant, fuel_instant = _fly_mpc_to_the_band(STEADY_WIND, attitude_lag=0.0, axis_limit=0.0)
     drift_lag, fuel_lag = _fly_mpc_to_the_band(STEADY_WIND, axis_limit=0.0)
     print(f"drift at the hover {drift_instant:.3f} -> {drift_lag:.3f} m/s, fuel to the band {fuel_instant:.3f} -> {fuel_lag:.3f} kg")
@@ -153,7 +123,7 @@ class HoverBegins(NamedTuple):
 def _hover_begins(r: Regression, controller_index: int = 0, **params: object) -> HoverBegins:
     """The regression flown core-only by its sweep's controller ``controller_index`` (0 scheduled,
     1 MPC; ``params`` over the sweep's) to the start of its `hover` phase."""
-    for s, ctrl, _sim in _flown(r, controller_index, **params):
+    for s, ctrl, _sim in flown(r, controller_index, **params):
         if ctrl.phase is Phase.HOVER:
             rn = float(np.linalg.norm(s.r_W))
             climb = float(s.v_W @ s.r_W) / rn
@@ -170,7 +140,7 @@ def test_braking_on_the_collective_the_attitude_law_leaves_stops_in_the_band():
     downdraft), the limb runs out of thrust and the fall stops under the band. On the collective
     left, aimed ``stop_above`` over the demand, in the air fitted under the chute, it stops in it."""
     band = load_spec(WINDY_DOWNDRAFT.spec).end.hover_band
-    assert _wind(WINDY_DOWNDRAFT) > 5.0
+    assert WINDY_DOWNDRAFT.wind > 5.0
     error, _drift, ctrl = _hover_begins(WINDY_DOWNDRAFT)
     share = ctrl.descent.headroom.share
     error_full, _drift, ctrl_full = _hover_begins(WINDY_DOWNDRAFT, stop_above=0.0, learn_headroom=False,
@@ -235,7 +205,7 @@ def _hover_to_rest(r: Regression, **params: object) -> tuple[float, float]:
     within the sweep's band at its speed, the ground speed [m/s] as the hover began)."""
     spec = load_spec(r.spec)
     fuel0 = drift0 = None
-    for s, ctrl, _sim in _flown(r, 0, **params):
+    for s, ctrl, _sim in flown(r, 0, **params):
         if ctrl.phase is not Phase.HOVER:
             continue
         up = s.r_W / float(np.linalg.norm(s.r_W))
@@ -271,7 +241,7 @@ def test_braking_at_the_mixers_ceiling_counts_the_thrust_it_gives_not_the_one_as
     begins over the band's speed, over the sweep's 1.05 x yardstick. Counting the thrust the mixer
     gave, the drift is out by the hover and the fuel within the yardstick."""
     speed = load_spec(NORTH_WIND.spec).end.hover_speed
-    assert _wind(NORTH_WIND) > 6.0
+    assert NORTH_WIND.wind > 6.0
     end = _powered_end(NORTH_WIND, 0)
     before = _powered_end(NORTH_WIND, 0, lag_counts_ceiling=False)
     print(f"ground speed as the hover begins {before.drift:.3f} -> {end.drift:.3f} m/s; "
@@ -292,7 +262,7 @@ def test_fall_past_the_limbs_end_is_stopped_at_the_limbs_deceleration():
     spec = load_spec(WINDY_DOWNDRAFT.spec)
     handover = None
     t_end = speed = a_b = t_hover = ratio = None
-    for s, ctrl, sim in _flown(WINDY_DOWNDRAFT, 0):
+    for s, ctrl, sim in flown(WINDY_DOWNDRAFT, 0):
         rn = float(np.linalg.norm(s.r_W))
         error, climb = rn - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / rn
         if handover is None and ctrl.phase is Phase.POWERED:
@@ -355,8 +325,8 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
     spec = load_spec(r.spec)
     handover = None
     stopped, climb_max, fall_end, drift, coast_fuel = False, 0.0, math.nan, math.nan, math.nan
-    asked = flown = 0.0
-    for s, ctrl, sim in _flown(r, controller_index, **params):
+    asked = tilt_flown = 0.0
+    for s, ctrl, sim in flown(r, controller_index, **params):
         rn = float(np.linalg.norm(s.r_W))
         error, climb = rn - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / rn
         if handover is None and ctrl.phase is Phase.POWERED:
@@ -366,7 +336,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
         if ctrl.phase is Phase.POWERED and getattr(ctrl, "braking_begun", False) and ctrl.thrust_L is not None:
             T, z = ctrl.thrust_L, ctrl.frame @ quat_to_matrix(s.q)[2]
             asked += float(np.linalg.norm(T[:2])) / float(T[2])
-            flown += float(np.linalg.norm(z[:2])) / float(z[2])
+            tilt_flown += float(np.linalg.norm(z[:2])) / float(z[2])
         if handover is not None and math.isnan(fall_end) and climb >= 0.0:
             fall_end = error
         if math.isnan(drift) and ctrl.phase is Phase.HOVER:
@@ -380,7 +350,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
             ratio = fuel / powered_optimum(sim, handover, DEMAND.altitude)
             if math.isnan(fall_end):  # in the band under the hover's speed, still (slowly) falling
                 fall_end = error
-            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, flown / asked if asked > 0.0 else math.nan, fuel)
+            return PoweredEnd(climb_max, ratio, fall_end, drift, coast_fuel, tilt_flown / asked if asked > 0.0 else math.nan, fuel)
     raise AssertionError("never within the band at its speed")
 
 
@@ -434,7 +404,7 @@ def test_mpc_coasts_along_the_airflow_until_its_braking():
     ``coast_collective``, the coast burns under half of it, and at least half of that saving is
     kept to the band (not spent later in the braking). Both flights without the braking's
     integral action on the axis (``axis_limit`` 0), which flies the axis asked for either way."""
-    assert _wind(STRONG_WIND) > 5.0
+    assert STRONG_WIND.wind > 5.0
     end = _powered_end(STRONG_WIND, 1, axis_limit=0.0)
     before = _powered_end(STRONG_WIND, 1, axis_limit=0.0, coast_collective=0.0)
     print(f"fuel to the braking {before.coast_fuel:.3f} -> {end.coast_fuel:.3f} kg; to the band at rest "

@@ -50,7 +50,7 @@ def test_the_entry_learns_the_density_the_air_really_has(error):
         out = ctrl.update(sim.t, sim.state(), demand)
         if ctrl.phase is not Phase.ENTRY:  # the chute asked for: what was learnt is what it used
             break
-        scale = ctrl.descent.density_scale
+        scale = ctrl.descent.law.density_scale
         sim.set_throttles(out.throttles)
         sim.step(n_sub)
     assert sim.t >= 12.0  # coasted long enough for the filter (see below)
@@ -64,14 +64,14 @@ def test_the_chute_waits_for_the_drag_the_denser_air_will_give():
     """At the speed where the modelled drag is 0.85 of the canopy's limit (under the 0.9 margin),
     +30 % of air would give 1.1 of it: the learnt density holds the request back."""
     scene0, _ = _entry_sim(0.0)
-    law = make_controller("deorbit", scene0.vehicle).descent
+    descent = make_controller("deorbit", scene0.vehicle).descent
     h = 5000.0
     from lander_autopilot.controllers.landing import CHUTE_DRAG_K
     from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 
     speed = math.sqrt(0.85 * c.PARACHUTE_MAX_DRAG / (CHUTE_DRAG_K * MARS_ATMOSPHERE.density(h)))
-    assert speed < law.chute_margin * c.PARACHUTE_MAX_SPEED
-    assert law.chute_request(h, -speed, speed) is not None
-    law.reset()
-    law.density_scale = 1.3
-    assert law.chute_request(h, -speed, speed) is None
+    assert speed < descent.law.chute_margin * c.PARACHUTE_MAX_SPEED
+    assert descent.law.chute_request(h, -speed, speed) is not None
+    descent.reset()
+    descent.law.density_scale = 1.3
+    assert descent.law.chute_request(h, -speed, speed) is None

@@ -90,7 +90,7 @@ def test_descent_rate_schedule_flown_by_the_deorbit_law():
     sc = load_scene("deorbit")
     law = DeorbitController(sc.vehicle, descent_pole=pole).descent
     for mass, d in ((sc.vehicle.dry_mass + 60.0, 0.0), (sc.vehicle.dry_mass + 20.0, 0.3)):
-        law.mass = mass
+        law.law.mass = mass
         # the law's grid is the fine one (5 x 5 over dry..full mass = 100..200 kg, 0..1 /s); its miss
         # in acceleration units, (T_v / m) dK, does not depend on T_v, and is largest at cell centres
         assert abs(law.rate_gain(d) - (-pole - d)) <= e_fine * (1 + 1e-9)

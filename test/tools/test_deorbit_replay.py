@@ -59,14 +59,14 @@ def test_a_snapshot_from_older_code_gets_the_current_design_and_keeps_its_state(
     old = make_controller("deorbit", vehicle, hover_attitude_poles=[-2.0] * 6, brake_fraction=0.95)
     fresh = make_controller("deorbit", vehicle)
     old.descent.drag_scale = 0.87  # learnt under the chute
-    del old.descent.heading_W
+    del old.descent.law.heading_W
     del old.descent.stop_above  # an older pickle's descent has no instance attribute of it
-    assert not np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
+    assert not np.array_equal(old.hover.law.attitude.K, fresh.hover.law.attitude.K)
     tool._fill_missing(old, fresh)
-    assert np.array_equal(old.hover.attitude.K, fresh.hover.attitude.K)
-    assert old.descent.drag_scale == 0.87 and old.descent.heading_W is fresh.descent.heading_W
+    assert np.array_equal(old.hover.law.attitude.K, fresh.hover.law.attitude.K)
+    assert old.descent.drag_scale == 0.87 and old.descent.law.heading_W is fresh.descent.law.heading_W
     # the braking's margins too: the replay flies the current code's
-    assert (old.descent.brake_fraction, old.descent.stop_above) == (fresh.descent.brake_fraction, fresh.descent.stop_above)
+    assert (old.descent.law.brake_fraction, old.descent.stop_above) == (fresh.descent.law.brake_fraction, fresh.descent.stop_above)
 
 
 def test_a_frozen_record_from_older_code_gets_the_fields_added_since():

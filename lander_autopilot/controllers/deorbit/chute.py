@@ -50,7 +50,7 @@ class ChuteDecision:
         h = altitude(state)
         d = descent
         if not chute_open:
-            return h - d.half_size - descent.floor > d.chute_min_altitude
+            return h - d.law.half_size - descent.floor > d.law.chute_min_altitude
         r = c.MARS_RADIUS + h
         g = c.GM_MARS / (r * r)
         mass = self.vehicle.mass(state.fuel)

@@ -19,13 +19,14 @@ from lander_sim.physics import constants as c
 from lander_sim.physics.models.atmosphere import MARS_ATMOSPHERE
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_sim.physics.state import StateView
+from lander_sim.physics.vehicle import Vehicle
 
 from ...design.schedule import GainSchedule
-from ..base import Demand
+from ..base import ControlOutput, Demand
 from ..calibration import AirFit
 from ..combined import CollectiveHeadroom, Mix
 from ..landing import COAST_THRESHOLD_G, MODES, LandingController
-from .geometry import AXIS_UP_FLOOR, AxisIntegral
+from .geometry import AXIS_LIMIT, AXIS_UP_FLOOR, AxisIntegral
 
 
 def still_air_limb_speed(a_b: float, cd: float, h_c: float) -> float:
@@ -34,6 +35,23 @@ def still_air_limb_speed(a_b: float, cd: float, h_c: float) -> float:
     ``2 a_b h_c`` without drag."""
     return math.sqrt((a_b / cd) * math.expm1(2.0 * cd * h_c)) if cd > 0.0 else math.sqrt(2.0 * a_b * h_c)
 
+
+#: [m] the braking limb ends this far above the floor, inside the hover band (2 m): a braking that
+#: falls short still stops in the band instead of climbing back to it. The limb's margin is kept
+#: here, in height, more than in thrust (``brake_fraction`` 0.96): a braking that falls behind its
+#: limb ends lower, which costs nothing while it stays in the band; thrust held back costs every
+#: flight a longer burn. 1.75 m keeps the 200 km sweep's hardest braking (a thruster 3 % weak in a
+#: 5.6 m/s drift, ``test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band``)
+#: inside the band (the mission's ``stop_above``).
+STOP_ABOVE = 1.75
+#: [s] the attitude's lag to a new tilt under the canopy, braking (the mission's ``braking_lag``), and
+#: [s] of the braking left at which the ground speed is to be out (``braking_settle``): with the fall
+#: past the limb's end braked at ``a_b`` the braking is short, and a longer lag term holds the
+#: horizontal loop's time constant near ``tau + lag`` at the end, so the windiest flights begin the
+#: hover drifting; every pair in 0.45-0.55 s and 0.6-1.2 s gives the same count of flights within
+#: 1.05 x the optimum over both de-orbit sweeps (:meth:`DescentToAltitude.horizontal_acceleration`)
+BRAKING_LAG = 0.5
+BRAKING_SETTLE = 0.8
 
 #: Newton steps, at most, inverting the limb's stopping height from the still-air form: a bound
 #: on the work of a control period (the loop ends as soon as LIMB_TOLERANCE is met)
@@ -100,8 +118,14 @@ class FallDrag:
         return v
 
 
-class DescentToAltitude(LandingController):
+class DescentToAltitude:
     """The landing law's vertical loop redesigned to end at rest on ``floor`` [m] (the demand altitude).
+
+    A part: it holds the landing law it flies (:attr:`law`, a :class:`..landing.LandingController`
+    built with this part as its :class:`..landing.DescentProfile`), which asks it for the vertical
+    loop, the braking deceleration, the horizontal loop while braking, the thrust axis's correction,
+    the heading and the tilt limit, and tells it each mix. ``update``, ``reset`` and the chute's
+    request are the law's; the part reads and sets the law through its public members only.
 
     Braking limb: constant thrust deceleration ``a_b`` (``brake_fraction`` of the net thrust
     acceleration at the current mass, on the collective the attitude law leaves: ``headroom``,
@@ -147,30 +171,24 @@ class DescentToAltitude(LandingController):
     drag_scale: float = 1.0  # measured drag / modelled drag under the chute (.estimation.ChuteDragLearner)
     rate_schedule: GainSchedule | None = None
     RETURN_RATE: ClassVar[float] = 1.0  # [1/s] climb-back demand per metre below the floor
-    #: [m] the limb ends this far above the floor, inside the hover band (2 m): a braking that falls
-    #: short still stops in the band instead of climbing back to it. The limb's margin is kept here,
-    #: in height, more than in thrust (``brake_fraction`` 0.96): a braking that falls behind its limb
-    #: ends lower, which costs nothing while it stays in the band; thrust held back costs every
-    #: flight a longer burn. 1.75 m keeps the 200 km sweep's hardest braking (a thruster 3 % weak in
-    #: a 5.6 m/s drift, ``test_limb_margin_in_height_keeps_a_braking_that_falls_behind_in_the_band``)
-    #: inside the band (the mission's ``stop_above``).
-    stop_above: float = 1.75
+    #: [m] the limb ends this far above the floor (:data:`STOP_ABOVE`; the mission's ``stop_above``)
+    stop_above: float = STOP_ABOVE
     #: [s] of the braking left at which the ground speed is to be out (the mission's ``braking_settle``)
-    settle: float = 0.8
+    settle: float = BRAKING_SETTLE
     TAU_MIN: ClassVar[float] = 0.7  # [s] shortest time constant of the horizontal loop (horizontal_acceleration)
     #: [s] the attitude's lag to a new tilt under the canopy, braking (the mission's ``braking_lag``)
-    lag: float = 0.5
+    lag: float = BRAKING_LAG
     axis_time: float = 1.0  # [s] integral time of the thrust axis's correction (axis_bias)
     #: largest correction of the thrust axis, horizontal / vertical part (~11 deg; 0: none; the
     #: mission's ``axis_limit``)
-    axis_limit: float = 0.2
+    axis_limit: float = AXIS_LIMIT
     #: the horizontal loop's lag term counts, where the mixer's ceiling bound, the thrust it gave
     #: (True) rather than the thrust asked (the mission's ``lag_counts_ceiling``)
     lag_counts_ceiling: bool = True
     #: learn the attitude law's share of the collective while braking (the mission's ``learn_headroom``)
     learn_headroom: bool = True
     #: [m/s] horizontal wind (fitted under the chute) from which the headroom also learns at the
-    #: mixer's floor (:meth:`mix`); below it only where the ceiling binds
+    #: mixer's floor (:meth:`mixed`); below it only where the ceiling binds
     FLOOR_LEARN_WIND: ClassVar[float] = 4.0
     #: No thruster-failure watch (nor probe burns) on the way down from orbit. The watch's chute
     #: model learns the wind while coasting slowly under the canopy; opened at entry speeds in a
@@ -178,10 +196,20 @@ class DescentToAltitude(LandingController):
     #: airspeed squared) looks like a dead thruster within 0.2 s. In the 200 km sweep (200 flights,
     #: no failure drawn) that false alarm switched 7 of the 8 worst flights to the three-thruster
     #: spinning descent: 1.6-2.1 x the optimum's fuel, braking 70-140 m under the hover.
-    detects_failures: ClassVar[bool] = False
+    detects_failures: bool = False
+
+    def __init__(self, vehicle: Vehicle, **params: object) -> None:
+        """``params``: the landing law's (:attr:`..landing.LandingController.PARAMS`)."""
+        self.law = LandingController(vehicle, profile=self, **params)
+        self.reset()
+
+    def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
+        """The landing law's step, flown on this part's profile."""
+        return self.law.update(t, state, demand)
 
     def reset(self) -> None:
-        super().reset()
+        """Forget the flight: the law's state, and this part's (the headroom, the air, the winds)."""
+        self.law.reset()
         self._time_to_go = 0.0  # [s] braking left on the limb (vertical_acceleration sets it)
         self.headroom = CollectiveHeadroom()  # what the attitude law takes of the collective, braking
         self.air: AirFit | None = None  # the air fitted under the chute (.estimation.ChuteDragLearner.fit)
@@ -190,7 +218,7 @@ class DescentToAltitude(LandingController):
         self.wind_up = 0.0  # [m/s] the fitted wind's vertical part (up positive)
         self._a_up = 0.0  # [m/s^2] this period's thrust acceleration along up (vertical_acceleration)
         #: [m/s^2] the axial thrust acceleration the mixer gave last period if its ceiling bound
-        #: (``T_v mean(u) / m``), else None (:meth:`mix`, :meth:`horizontal_acceleration`)
+        #: (``T_v mean(u) / m``), else None (:meth:`mixed`, :meth:`horizontal_acceleration`)
         self._axial_at_ceiling: float | None = None
         self.axis_integral = AxisIntegral(self.axis_time, self.axis_limit)  # axis_bias's, braking
 
@@ -201,11 +229,14 @@ class DescentToAltitude(LandingController):
 
     def braking_acceleration(self, mass: float, g: float) -> float:
         """The limb's ``a_b`` on the collective the attitude law leaves (:class:`.combined.CollectiveHeadroom`)."""
-        return self.brake_fraction * max(self.headroom.available * self.T_v / mass - g, 0.0)
+        law = self.law
+        return law.brake_fraction * max(self.headroom.available * law.T_v / mass - g, 0.0)
 
-    def mix(self, t: float, state: StateView, inner: Demand) -> Mix:
-        m = super().mix(t, state, inner)
-        if self.mode != "coast" and self.learn_headroom:
+    def mixed(self, m: Mix) -> None:
+        """Braking: the attitude law's share of the collective learnt from the mix ``m`` (:class:`.combined.CollectiveHeadroom`),
+        and the axial thrust the mixer's ceiling gave kept for the next period's horizontal loop."""
+        law = self.law
+        if law.mode != "coast" and self.learn_headroom:
             u = m.throttles if m.mixed_from is None else m.mixed_from
             top = float(u.max())
             # Learn where the ceiling binds; in a strong wind also where the mixer gave way at the
@@ -215,39 +246,43 @@ class DescentToAltitude(LandingController):
             # optimum). In lighter winds the floor's one period teaches a share of ~0.03 that the
             # braking never needs, ~1 % of fuel on the typical flight.
             at_floor = self.wind_h >= self.FLOOR_LEARN_WIND and m.mixed_from is not None
-            self.headroom.update(top - self.collective.level, at_floor or top >= 1.0, self._dt)
+            self.headroom.update(top - law.collective.level, at_floor or top >= 1.0, law.control_period)
         self._axial_at_ceiling = self.axial_at_ceiling(m)
-        return m
 
     def axial_at_ceiling(self, m: Mix) -> float | None:
         """Braking: the axial thrust acceleration [m/s^2] the mix ``m`` gives where its ceiling binds,
         ``T_v mean(u) / m`` (``u`` clipped to [0, 1]); None where it does not, and in the coast."""
-        if not self.lag_counts_ceiling or self.mode == "coast" or float(m.throttles.max()) < 1.0:
+        if not self.lag_counts_ceiling or self.law.mode == "coast" or float(m.throttles.max()) < 1.0:
             return None
-        return self.T_v * float(np.clip(m.throttles, 0.0, 1.0).mean()) / self._mass
+        return self.law.T_v * float(np.clip(m.throttles, 0.0, 1.0).mean()) / self.law.mass
 
     def rate_gain(self, damping: float) -> float:
         """Velocity-loop acceleration gain [1/s] at the current mass and drag damping ``d`` [1/s]."""
         if self.rate_schedule is None:
-            return self.k_v
-        k = float(self.rate_schedule.gain((self._mass, damping))[0, 0])
-        return k * self.T_v / self._mass
+            return self.law.k_v
+        mass = self.law.mass
+        k = float(self.rate_schedule.gain((mass, damping))[0, 0])
+        return k * self.law.T_v / mass
 
     def vertical_acceleration(self, t: float, h: float, hd: float, demand: Demand) -> float:
+        """Thrust acceleration along up [m/s^2] on the braking limb to the floor (class docstring);
+        the law's mode leaves the coast once it asks for a tenth of gravity."""
+        law = self.law
+        mass = law.mass
         r = c.MARS_RADIUS + h
         g = c.GM_MARS / (r * r)
-        a_b = self.braking_acceleration(self._mass, g)
+        a_b = self.braking_acceleration(mass, g)
         h_c = h - self.floor - self.stop_above
         air = self.air
         if air is None or self.drag_k <= 0.0:
             # no fit (chute packed, or a flight begun under it): the scale learnt, still air
-            cd = self.drag_k * self.drag_scale * MARS_ATMOSPHERE.density(h) / self._mass
+            cd = self.drag_k * self.drag_scale * MARS_ATMOSPHERE.density(h) / mass
             if h_c > 0.0:
                 v = still_air_limb_speed(a_b, cd, h_c)
                 limb = a_b + cd * v * v  # the limb's deceleration at v
             drag_up, damping = -cd * hd * abs(hd), 2.0 * cd * abs(hd)
         else:
-            wind = FallDrag(self.drag_k * air.scale * MARS_ATMOSPHERE.density(h) / self._mass, self.wind_up, self.wind_h)
+            wind = FallDrag(self.drag_k * air.scale * MARS_ATMOSPHERE.density(h) / mass, self.wind_up, self.wind_h)
             if h_c > 0.0:
                 v = wind.limb_speed(a_b, h_c)
                 limb = a_b + wind.deceleration(v)
@@ -264,14 +299,14 @@ class DescentToAltitude(LandingController):
         if hd < 0.0:
             if h_c <= 0.0:
                 a_up = max(a_up, g - drag_up + a_b)
-            a_up = min(a_up, g - drag_up - hd / self._dt)
-        if a_up >= COAST_THRESHOLD_G * g and self.mode == "coast":
-            self.mode = MODES[1]
+            a_up = min(a_up, g - drag_up - hd / law.control_period)
+        if a_up >= COAST_THRESHOLD_G * g and law.mode == "coast":
+            law.mode = MODES[1]
         self._a_up = a_up
         return a_up
 
     def horizontal_acceleration(self, state: StateView, L: np.ndarray, h: float, v_L: np.ndarray,
-                                error: np.ndarray) -> np.ndarray:
+                                error: np.ndarray) -> np.ndarray | None:
         """Braking: the ground speed nulled over the braking left, with the drag fed forward and the
         attitude's lag allowed for (before it, and to a floor of 0, the ground-speed law's PI).
 
@@ -291,17 +326,13 @@ class DescentToAltitude(LandingController):
         that missing thrust's horizontal part as speed already being taken out, so the hover begins
         drifting (``test_braking_at_the_mixers_ceiling_counts_the_thrust_it_gives_not_the_one_asked``).
 
-        ``lag`` 0.5 s and ``settle`` 0.8 s: with the fall past the limb's end braked at ``a_b`` the
-        braking is short, and a longer lag term holds the loop's effective time constant near
-        ``tau + lag`` at the end, so the windiest flights begin the hover drifting
-        (``test_braking_takes_the_drift_out_before_its_shorter_end``; every pair in 0.45-0.55 s
-        and 0.6-1.2 s gave the same count of flights within 1.05 x the optimum over both de-orbit
-        sweeps). The loop's integral is held at 0 (it winds up on the drift while
+        ``lag`` and ``settle``: :data:`BRAKING_LAG`, :data:`BRAKING_SETTLE`
+        (``test_braking_takes_the_drift_out_before_its_shorter_end``). The loop's integral is held at 0 (it winds up on the drift while
         coasting).
         """
-        if self.floor <= 0.0 or self.mode == "coast":
-            return super().horizontal_acceleration(state, L, h, v_L, error)
-        self._integral[:] = 0.0
+        if self.floor <= 0.0 or self.law.mode == "coast":
+            return None
+        self.law.clear_velocity_integral()
         drag = self.horizontal_drag(L, h, v_L)
         z_L = L @ quat_to_matrix(state.q)[2]  # the thrust axis flown, ENU
         axial = self._a_up / max(float(z_L[2]), AXIS_UP_FLOOR)
@@ -321,7 +352,7 @@ class DescentToAltitude(LandingController):
         air = self.air
         scale = self.drag_scale if air is None else air.scale
         rel = v_L - L @ self.wind_W
-        cd = self.drag_k * scale * MARS_ATMOSPHERE.density(h) / self._mass
+        cd = self.drag_k * scale * MARS_ATMOSPHERE.density(h) / self.law.mass
         return -cd * float(np.linalg.norm(rel)) * rel[:2]
 
     def axis_bias(self, t: float, state: StateView, L: np.ndarray, wanted: np.ndarray) -> np.ndarray | None:
@@ -333,28 +364,30 @@ class DescentToAltitude(LandingController):
         under half the tilt asked for through the braking, leaving the hover the drift to take out
         on hover thrust (``test_thrust_axis_correction_takes_the_drift_out_by_the_hover``).
         """
-        if self.floor <= 0.0 or self.mode == "coast":
+        if self.floor <= 0.0 or self.law.mode == "coast":
             self.axis_integral.pause()
             return None
         if self.axis_limit == 0.0:
             return None
         return self.axis_integral.update(t, state.q, L, wanted)
 
-    def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray:
+    def heading_axis(self, state: StateView, L: np.ndarray) -> np.ndarray | None:
+        """None (the law's heading), after setting the law's ``heading_W`` (below)."""
         # From the braking on, the heading is the one the body had as it began (``heading_W``, world
         # frame; the hover and the landing keep it). The canopy leaves the body x anywhere; turning it
         # back to east as the braking started (0.9 rad/s of yaw from the canted thrusters'
         # differential throttle) took half of two thrusters for ~2 s of the braking, and the fall ran
         # under the hover. A heading free at every instant (the current body x) cost 1.5 % of the
         # nominal fuel: the yaw rate was never brought to rest.
-        if self.mode == "coast":
-            self.heading_W = None
-        elif self.heading_W is None:
-            self.heading_W = quat_to_matrix(state.q)[0].copy()
-        return super().heading_axis(state, L)
+        law = self.law
+        if law.mode == "coast":
+            law.heading_W = None
+        elif law.heading_W is None:
+            law.heading_W = quat_to_matrix(state.q)[0].copy()
+        return None
 
-    def tilt_limit(self, h: float) -> float:
+    def tilt_limit(self, h: float) -> float | None:
         # the floor is a hover, not a touchdown: the full tilt stays, so the ground speed the chute
         # drifted with in the wind is taken out (the landing law shrinks it to stand upright)
-        return self.max_tilt if self.floor > 0.0 else super().tilt_limit(h)
+        return self.law.max_tilt if self.floor > 0.0 else None
 

@@ -105,7 +105,7 @@ class OnlineEstimator:
         opened at 0.9 of its modelled drag limit is torn off."""
         prev, self._last_coast = self._last_coast, (t, np.array(state.v_W, float))
         thrust, self._coast_thrust = self._coast_thrust, math.inf
-        if prev is None or t <= prev[0] or thrust > COAST_THRUST_SHARE * descent.T_v:
+        if prev is None or t <= prev[0] or thrust > COAST_THRUST_SHARE * descent.law.T_v:
             return
         h = altitude(state)
         rn = float(np.linalg.norm(state.r_W))
@@ -116,7 +116,7 @@ class OnlineEstimator:
             return
         measured = float(np.linalg.norm((state.v_W - prev[1]) / (t - prev[0]) + c.GM_MARS * state.r_W / rn**3)) - thrust / mass
         ratio = clamp_ratio(measured / model)
-        descent.density_scale += min((t - prev[0]) / FILTER_TIME, 1.0) * (ratio - descent.density_scale)
+        descent.law.density_scale += min((t - prev[0]) / FILTER_TIME, 1.0) * (ratio - descent.law.density_scale)
 
     def learn_drag(self, t: float, state: StateView, descent: DescentToAltitude) -> None:
         """Under the open chute with the thrusters off: the drag the air really gives against the model's.

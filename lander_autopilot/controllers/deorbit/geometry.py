@@ -23,6 +23,13 @@ AXIS_UP_FLOOR = 0.5
 #: wind flew its thrust axis 11 degrees short of the 22 asked for at its braking's end), so the
 #: correction can close that error and not run away (the laws' ``axis_limit``).
 AXIS_LIMIT = 0.2
+#: [m/s] floor of a speed a direction is taken from (retrograde, along the airflow): keeps the divisor
+#: non-zero at rest, where any direction does; a billionth of a metre a second moves no attitude
+MIN_SPEED = 1e-9
+#: [-] sine of the angle between two axes under which they are taken as parallel (or opposite) in
+#: :func:`thrust_axis_attitude`: ~1e-12 rad, far under the attitude law's resolution, where the
+#: cross product's direction is rounding noise
+PARALLEL_SINE = 1e-12
 
 
 def axis_slope(axis_L: np.ndarray) -> np.ndarray:
@@ -78,7 +85,7 @@ def thrust_axis_attitude(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
     d = np.asarray(direction_W, float) / np.linalg.norm(direction_W)
     axis = np.cross(z, d)
     s, cth = float(np.linalg.norm(axis)), float(z @ d)
-    if s < 1e-12:
+    if s < PARALLEL_SINE:
         if cth > 0:
             return np.array(q, float)
         # opposite: any perpendicular axis does; take body x

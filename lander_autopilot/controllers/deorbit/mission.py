@@ -68,7 +68,7 @@ from ..params import ParamTable
 from .chute import ChuteDecision
 from .descent import DescentToAltitude
 from .estimation import OnlineEstimator
-from .geometry import altitude, climb_rate, thrust_axis_attitude
+from .geometry import MIN_SPEED, altitude, climb_rate, thrust_axis_attitude
 from .hover import HoverCapture
 from .mpc import ATTITUDE_LAG, MpcDescent
 from .params import DEORBIT_MPC_PARAMS, DEORBIT_PARAMS, SCHEDULED_ROWS
@@ -94,6 +94,8 @@ CHUTE_AND_BODY_DRAG_K = (0.5 * c.PARACHUTE_DRAG_COEFFICIENT * math.pi * c.PARACH
 #: 1/s covers it), on a 5 x 5 grid.
 SCHEDULE_DAMPING_MAX = 1.0
 SCHEDULE_POINTS = 5
+#: [m] a kilometre, for the phase log's altitudes
+KM = 1e3
 
 
 class DeorbitController(Controller):
@@ -127,7 +129,7 @@ class DeorbitController(Controller):
         self.descent.learn_headroom = bool(p["learn_headroom"])
         mass_grid = np.linspace(vehicle.dry_mass, vehicle.dry_mass + vehicle.fuel_capacity, SCHEDULE_POINTS)
         self.descent.rate_schedule = schedule_descent_rate(
-            self.descent.T_v, mass_grid, np.linspace(0.0, SCHEDULE_DAMPING_MAX, SCHEDULE_POINTS),
+            self.descent.law.T_v, mass_grid, np.linspace(0.0, SCHEDULE_DAMPING_MAX, SCHEDULE_POINTS),
             pole=float(p["descent_pole"]))  # type: ignore[arg-type]
         self.hover = HoverCapture(vehicle, attitude_poles=p["hover_attitude_poles"])
         self.hover.band, self.hover.speed = self.hover_band, self.hover_speed
@@ -139,7 +141,7 @@ class DeorbitController(Controller):
         # The plan keeps the canopy's own limits (the corridor the vehicle survives); the entry
         # predictor flown before the chute keeps the mission's margin on them.
         self.entry_vehicle = EntryVehicle(axial_thrust=vertical_thrust(vehicle) * self.burn_throttle,
-                                          fuel_rate=self.descent.mdot_max * self.burn_throttle,
+                                          fuel_rate=self.descent.law.mdot_max * self.burn_throttle,
                                           dry_mass=vehicle.dry_mass)
         self.chute_vehicle = dataclasses.replace(self.entry_vehicle,
                                                  chute_max_speed=self.chute_margin * c.PARACHUTE_MAX_SPEED,
@@ -216,7 +218,7 @@ class DeorbitController(Controller):
         burning = self.phase is Phase.BURN  # before command(): the burn's last period ends inside it
         out = saturate(self.command(t, state, demand))
         if burning or self.phase is Phase.BURN:
-            self.estimator.learn_thrust(t, state, self.descent.T_v * float(np.mean(out.throttles)) if self.phase is Phase.BURN else 0.0)
+            self.estimator.learn_thrust(t, state, self.descent.law.T_v * float(np.mean(out.throttles)) if self.phase is Phase.BURN else 0.0)
         if self.phase in DESCENT_PHASES:
             self.descent.floor = demand.altitude
             if (self.phase is Phase.ENTRY and self.chute_first and not self._chute_open
@@ -229,14 +231,14 @@ class DeorbitController(Controller):
                 # hover with 80 kg. Not reported before the chute is out; re-armed for later.
                 inner = dataclasses.replace(inner, requests=tuple(
                     r for r in inner.requests if r.kind != REQUEST_LANDING_UNREACHABLE))
-                self.descent.rearm_unreachable()
+                self.descent.law.rearm_unreachable()
             if any(r.kind == REQUEST_DEPLOY_PARACHUTE for r in inner.requests):
                 self._open_chute(t)
             if self.phase in (Phase.ENTRY, Phase.PARACHUTE) and self._waits_for_chute(state):
                 # Chute first: no thrust while the chute is still to open or still brakes harder than
                 # the descent law's braking limb would; the law's mode goes back to coast, so that the
                 # powered descent begins where the law itself first brakes under the open chute.
-                self.descent.mode = "coast"
+                self.descent.law.mode = "coast"
                 if not self._chute_open:
                     coast = saturate(self._entry_command(t, state))
                 else:
@@ -251,7 +253,7 @@ class DeorbitController(Controller):
                 if not self.brake_in_fitted_air:
                     self.descent.air = None  # the limb on the scale learnt, in still air
                 # the braking limb and the collective's throttle on the thrust the burn measured
-                self.descent.T_v *= self.thrust_calibration.scale
+                self.descent.law.T_v *= self.thrust_calibration.scale
             elif self.chute_first and self._chute_open and self.phase is Phase.PARACHUTE:
                 # Still coasting under the chute: thrust axis along the airflow (as above), not the
                 # descent law's upright hold, which fights the canopy's torque while the horizontal
@@ -261,7 +263,7 @@ class DeorbitController(Controller):
                                      requests=inner.requests)
             if (self.phase is Phase.POWERED and demand.altitude > 0
                     and settled(altitude(state) - demand.altitude, climb_rate(state), self.hover_band, self.hover_speed)):
-                self.hover.heading_W = self.landing.heading_W = self.descent.heading_W  # no yaw turn at the handover
+                self.hover.law.heading_W = self.landing.heading_W = self.descent.law.heading_W  # no yaw turn at the handover
                 L = local_frame(state.r_W)
                 self.hover.take_over(self.descent.horizontal_drag(L, altitude(state), np.zeros(3)))
                 self.machine.fire(t, Event.SETTLED, f"fall stopped within {self.hover_speed:g} m/s at "
@@ -293,10 +295,10 @@ class DeorbitController(Controller):
         (ground-speed mixing, failure watch: ~0.4 ms, 18,000 times from scenario 0's orbit) is not run
         until the chute is out; it then starts from the chute's instant."""
         self.estimator.learn_density(t, state, self.descent)
-        request = self.descent.chute_request(altitude(state), climb_rate(state), float(np.linalg.norm(state.v_W)))
+        request = self.descent.law.chute_request(altitude(state), climb_rate(state), float(np.linalg.norm(state.v_W)))
         if request is None:
             u = saturate(self._entry_command(t, state))
-            self.estimator.entry_thrust(self.descent.T_v * float(np.mean(u.throttles)))
+            self.estimator.entry_thrust(self.descent.law.T_v * float(np.mean(u.throttles)))
             return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value)
         self._open_chute(t)
         u = saturate(self._retrograde(state, 0.0))
@@ -312,7 +314,7 @@ class DeorbitController(Controller):
         self.estimator.learn_drag(t, state, self.descent)
         coast = saturate(self._retrograde(state, 0.0))
         # the thrust this period flies [N, world], for the next period's measured drag
-        self.estimator.chute_thrust(self.descent.T_v * self.thrust_calibration.scale * float(np.mean(coast.throttles))
+        self.estimator.chute_thrust(self.descent.law.T_v * self.thrust_calibration.scale * float(np.mean(coast.throttles))
                                     * quat_to_matrix(state.q)[2])
         return coast
 
@@ -326,7 +328,7 @@ class DeorbitController(Controller):
 
     def _retrograde(self, state: StateView, collective: float) -> np.ndarray:
         """Throttles holding the thrust axis against the velocity (attitude priority) [unclipped]."""
-        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), 1e-9)
+        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), MIN_SPEED)
         return mix_with_attitude_priority(collective, self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state))
 
     def start_in(self, phase: Phase, chute_open: bool = False) -> None:
@@ -338,7 +340,7 @@ class DeorbitController(Controller):
         self.machine = PhaseMachine(phase)
         self._chute_open = bool(chute_open)
         self.descent.drag_k = self._drag_k if chute_open else 0.0
-        self.descent.assume_chute_requested(self._chute_open)  # the chute is out: the law must not ask again
+        self.descent.law.assume_chute_requested(self._chute_open)  # the chute is out: the law must not ask again
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
         if self.phase not in ORBIT_PHASES:
@@ -354,9 +356,9 @@ class DeorbitController(Controller):
         if self.phase is Phase.BURN:
             orbit = Orbit.of(state.r_W, state.v_W)
             if periapsis_reached(orbit.periapsis_radius, self.plan.periapsis_altitude):
-                self.machine.fire(t, Event.PERIAPSIS, f"periapsis {(orbit.periapsis_radius - c.MARS_RADIUS) / 1e3:.2f} km")
+                self.machine.fire(t, Event.PERIAPSIS, f"periapsis {(orbit.periapsis_radius - c.MARS_RADIUS) / KM:.2f} km")
         if self.phase is Phase.COAST and in_atmosphere(h):
-            self.machine.fire(t, Event.ATMOSPHERE, f"altitude {h / 1e3:.1f} km: top of the atmosphere")
+            self.machine.fire(t, Event.ATMOSPHERE, f"altitude {h / KM:.1f} km: top of the atmosphere")
         if self.phase in (Phase.SLEW, Phase.BURN):
             retro = -state.v_W / float(np.linalg.norm(state.v_W))
             d = self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state)

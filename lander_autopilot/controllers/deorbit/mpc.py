@@ -44,7 +44,7 @@ from ..attitude import QuaternionAttitudeController
 from ..base import ControlOutput, Demand, saturate
 from ..calibration import AirFit
 from ..combined import CollectiveHeadroom, mix_with_attitude_priority
-from .geometry import AXIS_LIMIT, AXIS_UP_FLOOR, AxisIntegral, axis_slope, thrust_axis_attitude
+from .geometry import AXIS_LIMIT, AXIS_UP_FLOOR, MIN_SPEED, AxisIntegral, axis_slope, thrust_axis_attitude
 from .powered import Mission
 
 MPC_ATTITUDE_POLE = -2.0  # 1/s: the thrust axis's attitude law in the powered descent (double pole per axis)
@@ -65,11 +65,17 @@ COAST_COLLECTIVE = 0.2
 #: ``axis_time``): at the scheduled law's 1 s a windy flight of the 200 km sweep (6.2 m/s of wind)
 #: stopped 2.4 m under the demand, outside the hover band.
 AXIS_TIME = 2.0
+#: [rad] tilt limit of the thrust in the programme (the mission's ``max_tilt``): the ground-speed
+#: and landing laws' 40 degrees, which leaves cos 0.7 = 0.76 of the thrust along up
+MAX_TILT = 0.7
+#: [N] thrust under which the programme's command has no direction worth flying (a coast's zero):
+#: the thrust axis is then held up; a micronewton is ~1e-9 of the lander's weight
+MIN_THRUST = 1e-6
 
 
 
 def handover_problem(vehicle: Vehicle, r_W: np.ndarray, v_W: np.ndarray, fuel: float, demand_altitude: float,
-                     max_tilt: float = 0.7, chute_open: bool = True,
+                     max_tilt: float = MAX_TILT, chute_open: bool = True,
                      surface_density: float = c.ATMOSPHERE_SURFACE_DENSITY,
                      wind_W: np.ndarray | None = None, drag_scale: float = 1.0,
                      thrust_scale: float = 1.0, balanced: bool = False) -> tuple[DescentProblem, np.ndarray]:
@@ -172,7 +178,7 @@ class MpcDescent:
             T_L = self.stop_within_period(T_L, mass, h, v_L, float(axis_L[2]), state.r_W)
         self.thrust_L = T_L  # the QP's thrust this period, capped [N, handover's local ENU frame]
         mag = float(np.linalg.norm(T_L))
-        direction_W = L.T @ (T_L / mag) if mag > 1e-6 else state.r_W / float(np.linalg.norm(state.r_W))
+        direction_W = L.T @ (T_L / mag) if mag > MIN_THRUST else state.r_W / float(np.linalg.norm(state.r_W))
         axial = self.axial * mission.thrust_calibration.scale  # the axial thrust the burn measured
         collective = mag / axial
         coast = not self.braking_begun and collective < self.coast_collective and mission.chute_open
@@ -222,7 +228,7 @@ class MpcDescent:
         (``test_mpc_coasts_along_the_airflow_until_its_braking``)."""
         wind_W = air.wind_W if air is not None else np.zeros(3)
         air_W = state.v_W - wind_W
-        return -air_W / max(float(np.linalg.norm(air_W)), 1e-9)
+        return -air_W / max(float(np.linalg.norm(air_W)), MIN_SPEED)
 
     def stop_within_period(self, T_L: np.ndarray, mass: float, h: float, v_L: np.ndarray, axis_up: float,
                            r_W: np.ndarray) -> np.ndarray:

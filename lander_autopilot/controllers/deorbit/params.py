@@ -6,6 +6,8 @@ them generated (``lander controllers --update-docs``).
 """
 from __future__ import annotations
 
+from ...guidance.deorbit import CHUTE_ALTITUDE, SLEW_TIME
+from ...guidance.descent_mpc import MIN_TIME_TO_GO
 from ..params import (
     PI_2,
     Param,
@@ -24,25 +26,26 @@ from ..params import (
     positive,
     share,
 )
+from .descent import BRAKING_LAG, BRAKING_SETTLE, STOP_ABOVE
 from .geometry import AXIS_LIMIT
-from .hover import HOVER_ATTITUDE_POLES
-from .mpc import ATTITUDE_LAG, AXIS_TIME, COAST_COLLECTIVE
+from .hover import HOVER_ATTITUDE_POLES, HOVER_BAND, HOVER_SPEED
+from .mpc import ATTITUDE_LAG, AXIS_TIME, COAST_COLLECTIVE, MAX_TILT
 
 #: Rows of the mission itself, both laws' (the phases before and after the powered descent).
 MISSION_ROWS: tuple[Param, ...] = (
-    Param("slew_time", 60.0, "s", "> 0", "time before the de-orbit burn may start, to turn the thrust axis retrograde",
+    Param("slew_time", SLEW_TIME, "s", "> 0", "time before the de-orbit burn may start, to turn the thrust axis retrograde",
           positive),
     Param("burn_throttle", 0.85, "-", "> 0",
           "collective throttle of the de-orbit burn (and of an entry that must brake); the rest is the attitude law's",
           positive),
-    Param("hover_band", 2.0, "m", "> 0", "the powered descent hands over to the hover within this of the demand altitude",
+    Param("hover_band", HOVER_BAND, "m", "> 0", "the powered descent hands over to the hover within this of the demand altitude",
           positive),
-    Param("hover_speed", 0.2, "m/s", "> 0", "... at a climb rate within this of zero", positive),
+    Param("hover_speed", HOVER_SPEED, "m/s", "> 0", "... at a climb rate within this of zero", positive),
     Param("chute_first", True, "-", "true, false",
           "coast for the chute (no thrust until it opens and while it brakes harder than the braking limb)", boolean),
     Param("chute_margin", 0.9, "-", "(0, 1]",
           "fraction of the canopy's airspeed and drag limits the chute is opened within", fraction),
-    Param("chute_altitude", 3000.0, "m", "> 0", "lowest planned and predicted chute opening", positive),
+    Param("chute_altitude", CHUTE_ALTITUDE, "m", "> 0", "lowest planned and predicted chute opening", positive),
     Param("predict_every", 1.0, "s", "> 0", "period of the entry's drag-only prediction (chute packed)", positive),
     Param("attitude_poles", (-1.0,) * 6, "1/s", "6 poles, Re < 0",
           "the quaternion attitude law's poles from the slew to the parachute", poles(6)),
@@ -57,15 +60,15 @@ SCHEDULED_ROWS: tuple[Param, ...] = (
     Param("brake_fraction", 0.96, "-", "(0, 1)",
           "braking limb's deceleration, of the net thrust the attitude law leaves (the rest: feedback margin)",
           fraction_open),
-    Param("stop_above", 1.75, "m", "[0, hover_band)",
+    Param("stop_above", STOP_ABOVE, "m", "[0, hover_band)",
           "the braking limb ends at rest this far over the demand: a braking that falls behind stops in the band",
           non_negative),
     Param("descent_pole", -2.0, "1/s", "< 0", "pole of the descent's velocity loop, its gain scheduled over mass and drag",
           negative),
-    Param("braking_lag", 0.5, "s", ">= 0",
+    Param("braking_lag", BRAKING_LAG, "s", ">= 0",
           "the attitude's lag to a new tilt, braking: horizontal speed its lag still takes out is not asked twice",
           non_negative),
-    Param("braking_settle", 0.8, "s", ">= 0", "of the braking left, when the ground speed is to be out", non_negative),
+    Param("braking_settle", BRAKING_SETTLE, "s", ">= 0", "of the braking left, when the ground speed is to be out", non_negative),
     Param("axis_limit", AXIS_LIMIT, "-", ">= 0",
           "largest integral correction of the thrust axis braking under the canopy, horizontal/vertical (0: none)",
           non_negative),
@@ -85,8 +88,8 @@ MPC_ROWS: tuple[Param, ...] = (
           "the MPC takes over where the descent law's braking curve at this fraction of the net thrust is reached",
           fraction_open),
     Param("horizon_steps", 20, "-", "integer >= 2", "prediction steps of each period's programme", integer_at_least(2)),
-    Param("min_time_to_go", 0.3, "s", "> 0", "shortest horizon, once the reference's end is (nearly) passed", positive),
-    Param("max_tilt", 0.7, "rad", "(0, pi/2]", "tilt limit of the thrust in the programme", at_most(PI_2, "pi/2 rad")),
+    Param("min_time_to_go", MIN_TIME_TO_GO, "s", "> 0", "shortest horizon, once the reference's end is (nearly) passed", positive),
+    Param("max_tilt", MAX_TILT, "rad", "(0, pi/2]", "tilt limit of the thrust in the programme", at_most(PI_2, "pi/2 rad")),
     Param("glide_slope", 0.0, "rad", "[0, pi/2)", "glide-slope constraint (0: none; the hover has no landing spot)",
           angle_in(0.0, PI_2, "[0, pi/2)")),
     Param("reference_steps", 20, "-", "integer >= 10", "nodes of the minimum-fuel reference", integer_at_least(10)),

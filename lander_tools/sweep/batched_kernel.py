@@ -165,12 +165,26 @@ def _fly_all(y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, gust
                  err, tilt, rate, n_samples, sats, fuel, terminal, y_last, y_prev_last, k_last, v_before, states)
 
 
+def _fly_all_in_order(y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, gust_w, fail_step, fail_thruster,
+                      law, K, d_before, d_after, t_change, n_ctrl, n_sub, period, dt, stop_radius,
+                      err, tilt, rate, n_samples, sats, fuel, terminal, y_last, y_prev_last, k_last, v_before,
+                      states):  # pragma: no cover - compiled
+    """:func:`_fly_all` on one thread. A function of its own: numba's on-disk cache keys an entry by
+    the function and its signature, not by ``parallel``, so one function compiled both ways would
+    share one entry, and the serial path could load the threaded code (whose OpenMP layer then
+    forbids the worker processes the sweep forks)."""
+    for f in range(y0.shape[0]):
+        _fly_one(f, y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, gust_w, fail_step, fail_thruster,
+                 law, K, d_before, d_after, t_change, n_ctrl, n_sub, period, dt, stop_radius,
+                 err, tilt, rate, n_samples, sats, fuel, terminal, y_last, y_prev_last, k_last, v_before, states)
+
+
 if njit is not None:
     _fly_one = njit(cache=True)(_fly_one)
     _fly_all_parallel = njit(cache=True, parallel=True)(_fly_all)
-    _fly_all_serial = njit(cache=True)(_fly_all)
+    _fly_all_serial = njit(cache=True)(_fly_all_in_order)
 else:  # pragma: no cover - numba absent
-    _fly_all_parallel = _fly_all_serial = _fly_all  # type: ignore[unreachable]
+    _fly_all_parallel, _fly_all_serial = _fly_all, _fly_all_in_order  # type: ignore[unreachable]
 
 
 def fly_flights(inputs: dict[str, np.ndarray], law: np.ndarray, K: np.ndarray, n_ctrl: int, n_sub: int, period: float, dt: float,

@@ -1,9 +1,10 @@
 """Raw step speed of the core: velocity-Verlet steps per second of one lander (scenario 7's scene).
 
-Three implementations of the same model, timed in the same run so their ratios are meaningful
-on a noisy machine: the compiled kernel (lander_sim.fast), the numpy Dynamics path the
-Simulation uses, and a deliberately naive numpy implementation (small arrays, np.cross and a
-rotation matrix per evaluation). Also reports numba's start-up cost (cold compile and cached
+Four implementations of the same model, timed in the same run so their ratios are meaningful
+on a noisy machine: the compiled kernel (lander_sim.fast), its ceiling (bench/ceiling.py: the
+same physics fused, written only to be fast, alternating with the kernel), the numpy Dynamics
+path (``VelocityVerlet(compiled=False)``, the reference), and a deliberately naive numpy
+implementation (small arrays, np.cross and a rotation matrix per evaluation). Also reports numba's start-up cost (cold compile and cached
 load, each in a fresh process) and checks the kernel against the numpy path.
 
     python bench/speed.py [--json FILE] [--out DIR] [--quick]

@@ -198,10 +198,7 @@ def verlet_step(y, dt, params, force, torque, burn, throttles, wind, a0, a1, est
     scratch arrays unused).
     """
     if params[P_EULER] == 0.0 and params[P_PIVOT] == 0.0:
-        out = _quaternion_step((y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13]),
-                               dt, _call_constants(params, force, torque, burn, throttles, wind))
-        for j in range(14):
-            y[j] = out[j]
+        verlet_step_quaternion(y, dt, params, force, torque, burn, throttles, wind)
         return
     h = 0.5 * dt
     _accelerations(y, params, force, torque, throttles, wind, a0)
@@ -400,6 +397,17 @@ def _quaternion_step(state, dt, m):  # pragma: no cover - compiled
                           w1 + dt * a0[3], w2 + dt * a0[4], w3 + dt * a0[5], fuel, m)
     return (x, yy, z, vh0 + h * a1[0], vh1 + h * a1[1], vh2 + h * a1[2], s, a, b, c,
             wh1 + h * a1[3], wh2 + h * a1[4], wh3 + h * a1[5], fuel)
+
+
+@njit(cache=True)
+def verlet_step_quaternion(y, dt, params, force, torque, burn, throttles, wind):  # pragma: no cover - compiled
+    """:func:`verlet_step` of a free quaternion lander only (``params[P_EULER]`` and
+    ``params[P_PIVOT]`` zero: the caller checks): the scalar step, small enough for a caller's
+    loop (the compiled closed loop) to take inline."""
+    out = _quaternion_step((y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9], y[10], y[11], y[12], y[13]),
+                           dt, _call_constants(params, force, torque, burn, throttles, wind))
+    for j in range(14):
+        y[j] = out[j]
 
 
 @njit(cache=True)

@@ -25,7 +25,7 @@ import lander_autopilot.controllers.compiled as _law
 import lander_sim.fast.lander_kernel as _kernel
 from lander_autopilot.controllers.compiled import D_ALT, law_update
 from lander_sim.fast.cache_guard import invalidate_if_changed
-from lander_sim.fast.lander_kernel import HAVE_NUMBA, verlet_step
+from lander_sim.fast.lander_kernel import HAVE_NUMBA, P_EULER, P_PIVOT, verlet_step, verlet_step_quaternion
 from lander_sim.physics.constants import MARS_RADIUS
 
 # The compiled loop calls the law and the Verlet step of those modules: recompile when they change.
@@ -68,6 +68,7 @@ def _fly_one(f, y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, g
     kp, fo, to, bu = kparams[f], force[f], torque[f], burn[f]  # views hoisted out of the loop
     db, da = d_before[f], d_after[f]
     fuel_out = False
+    quaternion = kp[P_EULER] == 0.0 and kp[P_PIVOT] == 0.0
     next_fail = 0  # the first physics step at which a thruster failure may be due
     flying = True
     kstep = 0
@@ -131,7 +132,10 @@ def _fly_one(f, y0, kparams, force, torque, burn, mean_wind, gust_ab, gust_g0, g
                 wind[j] = mean_wind[f, j] + g[j]
             for j in range(14):
                 y_prev[j] = y[j]
-            verlet_step(y, dt, kp, fo, to, bu, thr, wind, a0, a1, est)
+            if quaternion:  # the free quaternion lander's scalar step, inlined here
+                verlet_step_quaternion(y, dt, kp, fo, to, bu, thr, wind)
+            else:
+                verlet_step(y, dt, kp, fo, to, bu, thr, wind, a0, a1, est)
             kstep += 1
             if gust_ab[f, 0] != 0.0:
                 for j in range(3):

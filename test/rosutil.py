@@ -393,7 +393,13 @@ class Observer:
                     and all(n.count_publishers(t) >= k for t, k in pubs.items())
                     and all(self.clients[s].service_is_ready() for s in services))
 
-        self.wait_for(ready, self.start_timeout, f"discovery of {subscribers} / {pubs} / {services}")
+        try:
+            self.wait_for(ready, self.start_timeout, f"discovery of {subscribers} / {pubs} / {services}")
+        except TimeoutError as exc:  # say what the graph did show, so a slow discovery tells where it stood
+            seen = ({t: n.count_subscribers(t) for t in subscribers}, {t: n.count_publishers(t) for t in pubs},
+                    {s: self.clients[s].service_is_ready() for s in services})
+            raise TimeoutError(f"{exc}; seen: subscribers {seen[0]}, publishers {seen[1]}, services {seen[2]}, "
+                               f"nodes {sorted(n.get_node_names())}") from None
 
     def call(self, client: Any, request: Any = None, timeout: float | None = None) -> Any:
         """Call a service (a client, or the name of one in ``clients``) and return its answer."""

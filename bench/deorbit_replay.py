@@ -52,12 +52,12 @@ from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import flown_scene
 from lander_tools.sweep.dispersion import draw_case
 from lander_tools.sweep.flight import (
-    _act_on_requests,
-    _chute_open,
-    _controller,
-    _phase_name,
+    act_on_requests,
+    case_controller,
+    chute_is_open,
     control_period,
     demand_schedule,
+    flight_phase,
     fly_case,
     nominal_scene,
     powered_optimum,
@@ -179,7 +179,7 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
                 if not hold:
                     return row
             band_before = now
-        if _phase_name(sim) != "FLYING":
+        if flight_phase(sim) != "FLYING":
             row.outcome = "down"
             return row
         if hold and held.update(t, err, now.speed):
@@ -194,9 +194,9 @@ def _fly(spec: SweepSpec, sim: Simulation, ctrl: Any, k0: int, index: int, folde
             if snapshot_altitude is not None:
                 row.outcome = "no snapshot"  # braking began above the snapshot altitude
                 return row
-            handover, t_powered = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), _chute_open(sim)), t
+            handover, t_powered = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), chute_is_open(sim)), t
             band_before = now
-        _act_on_requests(sim, out)
+        act_on_requests(sim, out)
         sim.set_throttles(out.throttles)
         sim.step(n_sub)
     if row.outcome == "band":
@@ -209,7 +209,7 @@ def _task(args: tuple[str, str, int, str, float | None, bool, bool]) -> Replayed
     spec = load_spec(spec_path)
     ci = [ch.label for ch in spec.controllers].index(label)
     scene0 = nominal_scene(spec)
-    fresh = _controller(spec, ci, scene0.vehicle)
+    fresh = case_controller(spec, ci, scene0.vehicle)
     fresh.reset()
     if altitude is not None:  # make
         sim = Simulation(flown_scene(spec, draw_case(spec, index, scene0.vehicle.n_thrusters)))

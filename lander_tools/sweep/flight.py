@@ -120,7 +120,8 @@ def _steps_per_control(spec: SweepSpec, dt: float) -> int:
     return n
 
 
-def _phase_name(sim: Any) -> str:
+def flight_phase(sim: Any) -> str:
+    """The simulation's flight phase as an upper-case name (``FLYING``, ``LANDED``, ``CRASHED``, ...)."""
     p = sim.phase
     return str(getattr(p, "name", getattr(p, "value", p))).upper()
 
@@ -170,7 +171,7 @@ def fly_case(
         if (handover is not None and math.isnan(band_fuel) and hold is not None
                 and in_hover_band(errs[-1], speeds[-1], spec.end.hover_band, spec.end.hover_speed)):
             band_fuel = float(st.fuel)
-        phase = _phase_name(sim)
+        phase = flight_phase(sim)
         if phase != "FLYING":
             terminal = "crashed" if phase == "CRASHED" else "landed"
             break
@@ -182,8 +183,8 @@ def fly_case(
         if out.mode is not None and out.mode not in mode_fuel:
             mode_fuel[out.mode] = float(st.fuel)
             if out.mode == "powered-descent":
-                handover = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), _chute_open(sim))
-        _act_on_requests(sim, out)
+                handover = (st.r_W.copy(), st.v_W.copy(), float(st.fuel), chute_is_open(sim))
+        act_on_requests(sim, out)
         sat_steps += bool(out.saturated)
         sim.set_throttles(out.throttles)
         v_before = st.v_W
@@ -192,7 +193,7 @@ def fly_case(
             demands.append(demand.altitude)
             alts.append(h)
             thr_log.append(sim.throttles)  # as applied over the period: a failed thruster shows 0
-        if _phase_name(sim) != "FLYING":
+        if flight_phase(sim) != "FLYING":
             touchdown_speed, touchdown = touchdown_speed_of(sim, v_before)
 
     fuel_end = float(sim.state().fuel) if terminal != "diverged" else math.nan
@@ -243,15 +244,16 @@ def flown_periods(spec: SweepSpec, controller_index: int, index: int,
         t = k * period
         st = sim.state()
         out = ctrl.update(t, st, demand_after if t >= t_change else demand_before)
-        _act_on_requests(sim, out)
+        act_on_requests(sim, out)
         sim.set_throttles(out.throttles)
         sim.step(n_sub)
         yield t, st, ctrl, sim
-        if _phase_name(sim) != "FLYING":
+        if flight_phase(sim) != "FLYING":
             return
 
 
-def _chute_open(sim: Any) -> bool:
+def chute_is_open(sim: Any) -> bool:
+    """Whether the simulation's parachute is deployed (False for a scene without one)."""
     chute = getattr(sim, "parachute", None)
     return chute is not None and getattr(chute.status, "name", "") == "DEPLOYED"
 
@@ -315,7 +317,7 @@ def touchdown_speed_of(sim: Any, v_before: np.ndarray) -> tuple[float, dict[str,
     return float(np.linalg.norm(v_before)), {}
 
 
-def _act_on_requests(sim: Any, out: Any) -> None:
+def act_on_requests(sim: Any, out: Any) -> None:
     """Do what the autopilot node does with a law's requests (``ControlOutput.requests``): deploy
     the parachute (refused quietly if the scene has none: the node's service call fails the same
     way); a ``landing_unreachable`` report changes nothing in the flight."""

@@ -257,7 +257,7 @@ def test_fall_past_the_limbs_end_is_stopped_at_the_limbs_deceleration():
     cap ending it), the fall stops within that deceleration's time and the fuel is within the
     sweep's 1.05 x yardstick (a loop whose demand shrinks with its error there creeps the speed
     out at part of the collective)."""
-    from lander_tools.sweep.flight import _chute_open, control_period, powered_optimum
+    from lander_tools.sweep.flight import chute_is_open, control_period, powered_optimum
 
     spec = load_spec(WINDY_DOWNDRAFT.spec)
     handover = None
@@ -266,7 +266,7 @@ def test_fall_past_the_limbs_end_is_stopped_at_the_limbs_deceleration():
         rn = float(np.linalg.norm(s.r_W))
         error, climb = rn - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / rn
         if handover is None and ctrl.phase is Phase.POWERED:
-            handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), _chute_open(sim))
+            handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), chute_is_open(sim))
         if t_end is None and handover is not None and error < ctrl.descent.stop_above and climb < 0.0:
             t_end, speed = s.t, -climb
             a_b = ctrl.descent.braking_acceleration(sim.scene.vehicle.mass(float(s.fuel)), c.GM_MARS / (rn * rn))
@@ -320,7 +320,7 @@ class PoweredEnd(NamedTuple):
 def _powered_end(r: Regression, controller_index: int, **params: object) -> PoweredEnd:
     """The regression flown core-only by its sweep's controller ``controller_index`` (0 scheduled,
     1 MPC; ``params`` over the sweep's) to the band at rest: how its powered descent ended."""
-    from lander_tools.sweep.flight import _chute_open, powered_optimum
+    from lander_tools.sweep.flight import chute_is_open, powered_optimum
 
     spec = load_spec(r.spec)
     handover = None
@@ -330,7 +330,7 @@ def _powered_end(r: Regression, controller_index: int, **params: object) -> Powe
         rn = float(np.linalg.norm(s.r_W))
         error, climb = rn - c.MARS_RADIUS - DEMAND.altitude, float(s.v_W @ s.r_W) / rn
         if handover is None and ctrl.phase is Phase.POWERED:
-            handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), _chute_open(sim))
+            handover = (s.r_W.copy(), s.v_W.copy(), float(s.fuel), chute_is_open(sim))
         if handover is not None and math.isnan(coast_fuel) and getattr(ctrl, "braking_begun", False):
             coast_fuel = handover[2] - float(s.fuel)
         if ctrl.phase is Phase.POWERED and getattr(ctrl, "braking_begun", False) and ctrl.thrust_L is not None:

@@ -277,7 +277,7 @@ def test_powered_fuel_and_mpc_figures_come_from_the_controller(monkeypatch):
 
     spec = parse_spec({**HOLD, "end": {"duration": 6.0, "hover_window": 1.0},
                        "metrics": ["fuel_used", "powered_fuel", "mpc_solve_time_p99", "mpc_solve_time_median"]}, "modes")
-    ctrl = flight._controller(spec, 0, nominal_scene(spec).vehicle)
+    ctrl = flight.case_controller(spec, 0, nominal_scene(spec).vehicle)
     inner = ctrl.update
 
     def update(t, state, demand):

@@ -73,7 +73,7 @@ def test_the_examples_parameters_are_the_de_orbit_laws_and_reach_it(params_file)
         assert resolved[name] == value != table[name].default, name  # each one changes the law
     law = make_controller("deorbit", load_scene("deorbit").vehicle, **params)
     built = {"slew_time": law.slew_time, "stop_above": law.descent.stop_above,
-             "brake_fraction": law.descent.brake_fraction}
+             "brake_fraction": law.descent.law.brake_fraction}
     assert {k: built[k] for k in params if k in built} == {k: v for k, v in params.items() if k in built}
     assert "slew_time" in params  # the flight below sees it
 

@@ -214,14 +214,8 @@ def wait_until_matched(f: LaunchedFlight) -> None:
                 _refuse_if_taken(f, "a simulator of another flight answers")
             own_sim.append(True)
         for topic, sub in sup.subs.items():
-            writers = sub.get_publisher_count()
-            if writers < need_here.get(topic, 1):
+            if sub.get_publisher_count() < need_here.get(topic, 1):
                 waiting.append(f"launcher <- {topic}")
-            elif topic == "/lander/state" and writers > need_here.get(topic, 1):
-                # matched endpoints come before the graph names their nodes: a second writer of the
-                # state is another flight's simulator already, whatever the node list says yet (a
-                # stranger's throttles are the simulator's to refuse: lander_ros.strangers)
-                _refuse_if_taken(f, f"{writers} publishers of {topic}")
         if sup.recorder is not None:
             for topic, n in need_here.items():
                 if sup.recorder.wanted(topic) and sup.recorder.matched(topic) < n:

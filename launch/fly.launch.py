@@ -8,12 +8,20 @@ autopilot or ``controller:=none``) and the process that starts the flight and en
 What is started, and why, is plain data (lander_tools.fly.launch_plan): the sim starts paused and
 leaves pause once everyone who flies it is matched (``lander start``, or ``lander record
 --whole-flight --start`` with ``record:=``), so the launched flight is the deterministic flight
-``lander fly`` gives; the launch ends when that process exits: at the flight's end instant with
+``lander fly`` gives, found on this machine only unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set;
+the launch ends when that process exits: at the flight's end instant with
 ``duration:=``, at the end of the recording with ``record:=``, or when the sim node exits.
 Differences from ``lander fly``: it does not end on landing or crash by itself, and there is no
 ``--compose`` (Python nodes cannot be loaded into a C++ component container).
 """
-from launch.actions import DeclareLaunchArgument, EmitEvent, ExecuteProcess, OpaqueFunction, RegisterEventHandler
+from launch.actions import (
+    DeclareLaunchArgument,
+    EmitEvent,
+    ExecuteProcess,
+    OpaqueFunction,
+    RegisterEventHandler,
+    SetEnvironmentVariable,
+)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
@@ -39,7 +47,8 @@ def _nodes(context):
     plan = launch_plan({name: LaunchConfiguration(name).perform(context) for name in ARGS}, _scene_controller)
     sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
                parameters=[*plan.sim_defaults, *plan.files, plan.sim])
-    actions = [sim, _shutdown_on_exit(sim, "sim exited")]
+    actions = [*(SetEnvironmentVariable(name, value) for name, value in plan.env.items()),
+               sim, _shutdown_on_exit(sim, "sim exited")]
     if plan.autopilot is not None:
         actions.append(Node(package="mars_lander", executable="autopilot_node", name="autopilot", output="screen",
                             parameters=[*plan.files, plan.autopilot]))

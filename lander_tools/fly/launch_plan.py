@@ -12,7 +12,10 @@ ends the launch:
 
 The sim starts paused either way and leaves pause only when every participant is matched, so
 state 1 reaches the autopilot and the launched flight is the deterministic flight ``lander fly``
-gives (no lockstep answer is waited out at the start). Plain Python: tested without ``launch``.
+gives (no lockstep answer is waited out at the start). Discovery stays on this machine
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` for every process of the launch) unless the user set
+the range, as for ``lander fly`` and the verbs (docs/flying.md, "Flights kept apart"). Plain
+Python: tested without ``launch``.
 """
 from __future__ import annotations
 
@@ -51,14 +54,24 @@ class LaunchPlan:
     autopilot: dict[str, Any] | None
     ender: list[str] = field(default_factory=list)
     end_reason: str = ""
+    #: Environment variables the launch sets for all its processes (before any starts).
+    env: dict[str, str] = field(default_factory=dict)
 
 
-def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str]) -> LaunchPlan:
+def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str],
+                environ: Mapping[str, str] | None = None) -> LaunchPlan:
     """The plan for the launch arguments ``arg`` (every name of :data:`ARGS`, as strings).
 
-    ``scene_controller(scene)`` names the scene's own autopilot controller, '' when it has none.
-    Raises ValueError naming an argument that is not a number where one is needed."""
+    ``scene_controller(scene)`` names the scene's own autopilot controller, '' when it has none;
+    ``environ`` (default os.environ) is the launch's environment. Raises ValueError naming an
+    argument that is not a number where one is needed."""
+    import os
+
+    from lander_tools.fly.domain import LOCALHOST, RANGE_VAR
     from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT
+
+    environ = os.environ if environ is None else environ
+    env = {} if environ.get(RANGE_VAR, "").strip() else {RANGE_VAR: LOCALHOST}
 
     controller = arg["controller"] or scene_controller(arg["scene"])
     if controller.lower() == "none":
@@ -83,7 +96,7 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str]) 
     else:
         ender = ["start", *(["--autopilot"] if controller else []), "--until-end", *wait]
         reason = "flight ended"
-    return LaunchPlan(sim, defaults, files, autopilot, ender, reason)
+    return LaunchPlan(sim, defaults, files, autopilot, ender, reason, env)
 
 
 def _number(arg: Mapping[str, str], name: str) -> float:

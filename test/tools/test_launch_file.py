@@ -38,12 +38,18 @@ def _scene_controller(scene: str) -> str:
 # --- the plan ------------------------------------------------------------------------------------
 
 def test_a_flown_scene_starts_paused_in_lockstep_and_is_started_once_its_autopilot_is_matched() -> None:
-    plan = launch_plan(_args(), _scene_controller)
+    plan = launch_plan(_args(), _scene_controller, environ={})
     assert plan.sim == {"scene": "hover", "speed": 1.0, "start_paused": True, "lockstep": True}
     assert plan.autopilot == {"scene": "hover", "controller": "combined", "use_sim_time": True}
     assert plan.ender == ["start", "--autopilot", "--until-end", *WAIT]
     assert plan.end_reason == "flight ended"
     assert plan.sim_defaults == [] and plan.files == []
+    assert plan.env == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}  # this machine only, as lander fly
+
+
+def test_a_discovery_range_the_user_set_is_kept() -> None:
+    for value in ("SUBNET", "LOCALHOST", "OFF"):
+        assert launch_plan(_args(), _scene_controller, environ={"ROS_AUTOMATIC_DISCOVERY_RANGE": value}).env == {}
 
 
 def test_the_sim_alone_holds_its_last_command_and_waits_for_no_autopilot() -> None:
@@ -91,7 +97,7 @@ def _stand_ins() -> dict[str, types.ModuleType]:
     names = {
         "launch": ["LaunchDescription"],
         "launch.actions": ["DeclareLaunchArgument", "EmitEvent", "ExecuteProcess", "OpaqueFunction",
-                           "RegisterEventHandler"],
+                           "RegisterEventHandler", "SetEnvironmentVariable"],
         "launch.event_handlers": ["OnProcessExit"],
         "launch.events": ["Shutdown"],
         "launch.substitutions": [],
@@ -120,6 +126,7 @@ def _load_launch_file(monkeypatch: pytest.MonkeyPatch) -> types.ModuleType:
 
 def test_the_launch_file_declares_every_argument_and_starts_what_the_plan_says(monkeypatch) -> None:
     launch_file = _load_launch_file(monkeypatch)
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)  # a user who set no range
     description = launch_file.generate_launch_description()
     (entities,) = description.args
     declared = {e.args[0]: e.kwargs for e in entities[:-1]}
@@ -129,7 +136,8 @@ def test_the_launch_file_declares_every_argument_and_starts_what_the_plan_says(m
     actions = opaque.kwargs["function"](given)
     plan = launch_plan(given, launch_file._scene_controller)
 
-    sim, on_sim_exit, autopilot, ender, on_ender_exit = actions
+    set_range, sim, on_sim_exit, autopilot, ender, on_ender_exit = actions
+    assert set_range.args == ("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")  # before any process starts
     assert sim.kwargs["executable"] == "sim_node" and sim.kwargs["name"] == "lander_sim"
     assert sim.kwargs["parameters"] == [*plan.sim_defaults, "p.yaml", plan.sim]
     assert plan.sim["start_paused"] and plan.sim["end_time"] == 12.0

@@ -8,7 +8,8 @@ ROS 2 keeps participants apart by two settings, read by every process from its e
   101 they fall into Linux's ephemeral port range): participants of different domains never
   discover each other. A flight takes the user's ``ROS_DOMAIN_ID`` or ``--domain``; without either
   it takes a domain no other flight or test run on this machine holds (:func:`claim_free_domain`:
-  an advisory lock per domain, dropped by the kernel when the launcher exits).
+  an advisory lock per domain, dropped by the kernel when the launcher exits). A domain the user
+  chose is held the same way (:func:`hold_domain`), so a second flight there is refused at once.
 * ``ROS_AUTOMATIC_DISCOVERY_RANGE``: ``LOCALHOST`` keeps discovery and traffic on this machine,
   ``SUBNET`` (ROS's default) reaches the local network. A flight and the verbs use ``LOCALHOST``
   unless the user set the variable or asked for the network (``--network``: ``SUBNET``).
@@ -113,16 +114,42 @@ def claim_free_domain(start: int | None = None) -> DomainLock:
                      f"set {DOMAIN_VAR} to share one (lander fly then refuses to join a running flight)")
 
 
+class DomainTaken(ValueError):
+    """Another flight runs in the flight's ROS domain: the flight is refused before it starts."""
+
+    def __init__(self, domain: int | str, what: str) -> None:
+        super().__init__(f"another flight is running in {DOMAIN_VAR}={domain} ({what}): refused, nothing flown or "
+                         f"recorded; unset {DOMAIN_VAR} (lander fly then picks a free domain) or choose another")
+
+
+def hold_domain(domain: int) -> DomainLock:
+    """Hold ``domain``, one the user chose, for one flight; :class:`DomainTaken` when another
+    ``lander fly`` on this machine holds it. The lock sees flights on this machine at once, before
+    any discovery; flights elsewhere on the network (or not started by ``lander fly``) are found in
+    the ROS graph at start-up (:func:`lander_tools.fly.flight.strangers_in_graph`)."""
+    try:
+        LOCK_DIR.mkdir(mode=0o1777, exist_ok=True)
+        LOCK_DIR.chmod(0o1777)
+    except OSError:
+        pass
+    handle = _try_lock(LOCK_DIR / f"{domain}.lock", exclusive=True)
+    if handle is None and (LOCK_DIR / f"{domain}.lock").exists():
+        raise DomainTaken(domain, "another lander fly on this machine holds it")
+    return DomainLock(domain, handle)  # an unreadable lock folder: the graph check still refuses
+
+
 def choose_place(environ: dict[str, str] | Any, domain: int | None = None,
-                 network: bool = False) -> tuple[FlightPlace, DomainLock | None]:
-    """The flight's place: ``domain`` (``--domain``), else the user's ``ROS_DOMAIN_ID``, else a free
-    one (held: release the lock when the flight is over); discovery ``SUBNET`` with ``network``,
-    else the user's ``ROS_AUTOMATIC_DISCOVERY_RANGE``, else ``LOCALHOST``."""
-    lock: DomainLock | None = None
+                 network: bool = False) -> tuple[FlightPlace, DomainLock]:
+    """The flight's place and its held lock (release it when the flight is over): ``domain``
+    (``--domain``), else the user's ``ROS_DOMAIN_ID`` (:func:`hold_domain`: refused when another
+    ``lander fly`` here holds it), else a free one; discovery ``SUBNET`` with ``network``, else the
+    user's ``ROS_AUTOMATIC_DISCOVERY_RANGE``, else ``LOCALHOST``."""
     if domain is not None:
         chosen, domain_from = domain, "--domain"
     elif environ.get(DOMAIN_VAR, "").strip():
         chosen, domain_from = parse_domain(environ[DOMAIN_VAR], DOMAIN_VAR), DOMAIN_VAR
+    if domain is not None or environ.get(DOMAIN_VAR, "").strip():
+        lock = hold_domain(chosen)
     else:
         lock = claim_free_domain()
         chosen, domain_from = lock.domain, "picked free on this machine"

@@ -67,10 +67,6 @@ class LaunchedFlight:
             self.spin()
 
 
-class DomainTaken(LaunchError):
-    """Another flight runs in this flight's ROS domain: the flight is refused before it starts."""
-
-
 def flight_nodes(f: LaunchedFlight) -> dict[str, int]:
     """The flight's own nodes by name and how many of each (one more of any: another flight)."""
     nodes = {"lander_sim": 1, "lander_fly": 1}

@@ -23,9 +23,8 @@ from std_srvs.srv import Trigger
 from lander_interfaces.srv import Reset
 from lander_ros.flight_span import parse_matched, shortfalls, surplus
 from lander_tools.fly.checks import check_plan, scene_end_time
-from lander_tools.fly.domain import FlightPlace, choose_place, write_run_file
+from lander_tools.fly.domain import DomainTaken, FlightPlace, choose_place, write_run_file
 from lander_tools.fly.flight import (
-    DomainTaken,
     Interrupted,
     LaunchedFlight,
     NodeDied,
@@ -59,6 +58,9 @@ RESET_ATTEMPTS = 3
 DELIVERY_TIMEOUT = 10.0
 #: Wall seconds without a new state (while not paused) after which the flight is an error.
 STALL_TIMEOUT = 30.0
+#: Wall seconds a start-up question to the sim stays unanswered before it is asked again (a
+#: service request can be lost while discovery is still matching the reply's reader).
+ASK_AGAIN = 2.0
 #: Wall seconds between two looks at the graph for another flight's nodes while flying.
 GRAPH_WATCH_PERIOD = 0.5
 
@@ -85,8 +87,7 @@ def fly(plan: FlightPlan, out: TextIO | None = None, progress: Any = None, env: 
             f.folder = Path(folder)
             result = _fly_phases(f)
     finally:
-        if lock is not None:
-            lock.release()
+        lock.release()
     result.wall_time = time.monotonic() - wall0
     _add_what_was_watched(f, result)
     return result
@@ -199,19 +200,15 @@ def wait_until_matched(f: LaunchedFlight) -> None:
     need_sim, need_here = expected_subscribers(f), expected_publishers(f)
     waiting: list[str] = []
     own_sim: list[bool] = []
+    asked: list[tuple[Any, float]] = []  # the pending flight_id request and when it was sent
 
     def matched() -> bool:
         _refuse_if_taken(f, strangers_in_graph(f))
         waiting[:] = []
         if not own_sim:  # the simulator that answers must be this flight's (its flight_id)
-            if not sup.cli_sim_get.service_is_ready():
-                waiting.append("the sim's parameters")
+            if not _sim_is_ours(f, asked):
+                waiting.append("the sim's flight_id")
                 return False
-            res = call(f.executor, sup.cli_sim_get, GetParameters.Request(names=["flight_id"]), STARTUP_TIMEOUT,
-                       "the sim's flight_id")
-            theirs = res.values[0].string_value if res.values else ""
-            if theirs != f.flight_id:
-                _refuse_if_taken(f, "a simulator of another flight answers")
             own_sim.append(True)
         for topic, sub in sup.subs.items():
             if sub.get_publisher_count() < need_here.get(topic, 1):
@@ -249,14 +246,32 @@ def wait_until_matched(f: LaunchedFlight) -> None:
         f.spin()
 
 
+def _sim_is_ours(f: LaunchedFlight, asked: list[tuple[Any, float]]) -> bool:
+    """Whether the simulator answering ``flight_id`` is this flight's, asked without blocking: the
+    request is sent (again after ASK_AGAIN s unanswered) and judged once answered, so that the graph
+    is looked at between tries; another flight's simulator answering refuses the flight."""
+    sup = f.sup
+    assert sup is not None
+    if not sup.cli_sim_get.service_is_ready():
+        return False
+    if not asked or (not asked[0][0].done() and time.monotonic() - asked[0][1] > ASK_AGAIN):
+        asked[:] = [(sup.cli_sim_get.call_async(GetParameters.Request(names=["flight_id"])), time.monotonic())]
+    fut = asked[0][0]
+    if not fut.done():
+        return False
+    res = fut.result()
+    theirs = res.values[0].string_value if res is not None and res.values else ""
+    if theirs != f.flight_id:
+        _refuse_if_taken(f, "a simulator of another flight answers")
+    return True
+
+
 def _refuse_if_taken(f: LaunchedFlight, what: str | None) -> None:
     """DomainTaken naming ``what`` (another flight's nodes seen), unless it is None."""
     if what is None:
         return
     f.refused = True
-    domain = f.place.domain if f.place is not None else os.environ.get("ROS_DOMAIN_ID", "0")
-    raise DomainTaken(f"another flight is running in ROS_DOMAIN_ID={domain} ({what}): refused, nothing flown or "
-                      "recorded; unset ROS_DOMAIN_ID (lander fly then picks a free domain) or choose another")
+    raise DomainTaken(f.place.domain if f.place is not None else os.environ.get("ROS_DOMAIN_ID", "0"), what)
 
 
 def _watch_graph(f: LaunchedFlight) -> None:

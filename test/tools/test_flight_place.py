@@ -107,9 +107,11 @@ def own_locks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def test_a_flight_takes_the_users_domain_and_range_else_a_free_domain_on_localhost(own_locks: Path) -> None:
     p, lock = place.choose_place({"ROS_DOMAIN_ID": "42", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"})
-    assert (p.domain, p.discovery, lock) == (42, "SUBNET", None)
+    assert (p.domain, p.discovery, p.domain_from, lock.domain) == (42, "SUBNET", "ROS_DOMAIN_ID", 42)
+    lock.release()
     p, lock = place.choose_place({"ROS_DOMAIN_ID": "42"}, domain=7, network=True)
-    assert (p.domain, p.discovery, p.domain_from) == (7, "SUBNET", "--domain")
+    assert (p.domain, p.discovery, p.domain_from, lock.domain) == (7, "SUBNET", "--domain", 7)
+    lock.release()
     a, lock_a = place.choose_place({})
     b, lock_b = place.choose_place({})
     try:
@@ -125,6 +127,26 @@ def test_a_flight_takes_the_users_domain_and_range_else_a_free_domain_on_localho
     lock_c.release()
     with pytest.raises(ValueError, match="ROS_DOMAIN_ID = 'x'"):
         place.choose_place({"ROS_DOMAIN_ID": "x"})
+
+
+def test_a_domain_the_user_chose_is_refused_while_another_flight_here_holds_it(own_locks: Path) -> None:
+    """Two ``lander fly`` on one machine in the user's one domain: the second is refused before it
+    starts anything (no discovery to wait for), in the words of the graph's refusal."""
+    p, held = place.choose_place({"ROS_DOMAIN_ID": "9"})
+    try:
+        with pytest.raises(place.DomainTaken, match=r"another flight is running in ROS_DOMAIN_ID=9 \(another lander fly"):
+            place.choose_place({"ROS_DOMAIN_ID": "9"})
+        with pytest.raises(place.DomainTaken):
+            place.choose_place({}, domain=9)
+        _, lock = place.choose_place({"ROS_DOMAIN_ID": "10"})  # another domain is free
+        lock.release()
+        free, lock = place.choose_place({})
+        assert free.domain != 9  # a held domain is never picked either
+        lock.release()
+    finally:
+        held.release()
+    again, lock = place.choose_place({"ROS_DOMAIN_ID": "9"})  # the flight ended: its domain is free
+    lock.release()
 
 
 def test_a_domain_a_test_run_holds_is_never_picked(own_locks: Path) -> None:

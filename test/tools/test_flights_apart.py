@@ -6,7 +6,9 @@ stranger publishing throttles to a flight is refused (the flight's states are th
 flown alone), counted in the simulator's diagnostics and reported in one line. A flight another
 simulator joins mid-way says so in one line, its autopilot does not answer the stranger's states
 (its throttles are those of the flight flown alone) and its bag check names the extra messages;
-a flight started in a domain where another flight runs is refused and leaves no bag.
+a flight started in a domain where another flight runs is refused and leaves no bag, whether that
+flight is another ``lander fly`` on this machine (the domain's lock) or a simulator started by hand
+(the graph at start-up).
 
 Every flight here is the same short hover (hover-canted, 20 s of sim time, lockstep), flown at 2x
 or 4x real time where the test acts while it flies (flat out for the reference); the simulator's
@@ -277,6 +279,28 @@ def test_a_flight_joined_mid_way_says_so_and_a_refused_flight_keeps_no_bag(alone
     # The flight's autopilot answered its own simulator only: its commands are those flown alone, in
     # order (the refused flight's autopilot, if it came up in time, may have added its own).
     assert _in_order_within(alone["/lander/throttle"], raw_messages(fly.bag)["/lander/throttle"]), out
+
+
+def test_a_flight_is_refused_where_a_simulator_started_by_hand_runs(params_file: Path, tmp_path: Path,
+                                                                    ros_context) -> None:
+    """No ``lander fly`` holds the domain here: the refusal comes from the graph at start-up."""
+    from lander_interfaces.msg import LanderState
+
+    obs = rosutil.Observer("watch", context=ros_context)
+    states = obs.record("/lander/state", LanderState, depth=10)
+    by_hand = rosutil.start_node("lander_sim.node", {"scene": "hover-canted", "speed": 1.0}, name="by_hand")
+    refused = None
+    try:
+        obs.wait_for(lambda: bool(states), LAUNCH_TIMEOUT, "the hand-started simulator's first state")
+        refused = Fly(tmp_path / "refused", params_file, flight_env(), speed=0.0)
+        rc, out = refused.finish()
+    finally:
+        if refused is not None:
+            refused.kill()
+        by_hand.close()
+        obs.close()
+    assert rc == 2 and "another flight is running in ROS_DOMAIN_ID=" in out, out
+    assert not (tmp_path / "refused").exists(), out
 
 
 def _in_order_within(wanted: list[bytes], got: list[bytes]) -> bool:

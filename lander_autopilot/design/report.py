@@ -116,12 +116,28 @@ def design_report(
     }
 
 
+#: [-] entries under this fraction of the largest of their matrix (or pole set) are printed as 0:
+#: the round-off of the linearisation and of the design (cos(pi/2) = 6.1e-17 in a rotation, the
+#: 1e-16 left of a pole at the origin), far under the 5 digits printed. The JSON keeps every bit.
+ROUNDOFF = 1e-12
+
+
+def _shown(v: float, scale: float) -> float:
+    """``v`` as printed: 0 (never -0) when it is round-off against ``scale``."""
+    return 0.0 if abs(v) <= ROUNDOFF * scale else v
+
+
 def _fmt_matrix(M: list[list[float]], indent: str = "    ") -> str:
-    return "\n".join(indent + " ".join(f"{v:11.5g}" for v in row) for row in M) if M else indent + "(empty)"
+    if not M:
+        return indent + "(empty)"
+    scale = max((abs(v) for row in M for v in row), default=0.0)
+    return "\n".join(indent + " ".join(f"{_shown(v, scale):11.5g}" for v in row) for row in M)
 
 
 def _fmt_poles(p: list[list[float]]) -> str:
-    return ", ".join(f"{re:.6g}{im:+.3g}j" if abs(im) > 1e-9 else f"{re:.6g}" for re, im in p)
+    scale = max((abs(complex(re, im)) for re, im in p), default=0.0)
+    shown = [(_shown(re, scale), _shown(im, scale)) for re, im in p]
+    return ", ".join(f"{re:.6g}{im:+.3g}j" if abs(im) > 1e-9 else f"{re:.6g}" for re, im in shown)
 
 
 def format_report(rep: dict[str, Any]) -> str:

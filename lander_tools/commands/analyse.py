@@ -49,6 +49,10 @@ def run(args: argparse.Namespace) -> int:
     if args.scene is not None and not args.reference:
         print("lander analyse: --scene is used only with --reference", file=sys.stderr)
         return 2
+    if args.out is not None and args.out.exists() and not args.out.is_dir():
+        print(f"lander analyse: --out {args.out}: not a folder (a file of that name exists); give a folder for "
+              "the plots", file=sys.stderr)
+        return 2
     flights: list[Flight] = []
     for path in args.bags:
         with warnings.catch_warnings(record=True) as caught:

@@ -102,6 +102,15 @@ def resolve_controller(plan: FlightPlan) -> str | None:
     return None if scene.autopilot is None else scene.autopilot.controller
 
 
+def scene_label(name: str) -> str:
+    """``'hover' (scenario 7)`` for an alias, ``'hover'`` for a name or a file: the scene as the
+    user reads it in the first line."""
+    for info in list_scenes():
+        if name in info.aliases:
+            return f"{info.name!r} (scenario {name})"
+    return repr(name)
+
+
 def scene_end_time(name: str) -> float | None:
     """The scene's ``end.max_time`` [s] (None: the flight ends on landing, crash or Ctrl-C)."""
     try:

@@ -22,7 +22,7 @@ from std_srvs.srv import Trigger
 
 from lander_interfaces.srv import Reset
 from lander_ros.flight_span import parse_matched, shortfalls, surplus
-from lander_tools.fly.checks import check_plan, scene_end_time
+from lander_tools.fly.checks import check_plan, scene_end_time, scene_label
 from lander_tools.fly.domain import DomainTaken, FlightPlace, choose_place, write_run_file
 from lander_tools.fly.flight import (
     Interrupted,
@@ -183,7 +183,7 @@ def start_nodes(f: LaunchedFlight) -> None:
         f.procs["live"] = NodeProcess("live", live_command(f.plan.live, f.plan.live + 1 if f.plan.live else 0),
                                       f.out, f.env)
     f.out.write(
-        f"[fly] scene {f.plan.scene!r}, controller {f.controller or 'none (sim alone)'}, "
+        f"[fly] scene {scene_label(f.plan.scene)}, controller {f.controller or 'none (sim alone)'}, "
         f"speed {f.plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in f.procs.items()) + "\n"
     )
 

@@ -50,6 +50,13 @@ def event_values(msg: Any) -> dict[str, float]:
     return dict(zip(keys, (float(v) for v in msg.values))) if len(keys) == len(msg.values) else {}
 
 
+def event_text(detail: str) -> str:
+    """A FlightEvent's detail as a user reads it: without the ``[values: ...]`` key of its numbers
+    (the sentence gives them with their units)."""
+    text, sep, names = detail.rpartition(" [values: ")
+    return text if sep and names.endswith("]") else detail
+
+
 class Supervisor:
     """The launcher's own node: watches the flight, applies the timeline, records, counts.
 
@@ -211,7 +218,7 @@ class Supervisor:
         if msg.kind == E.INPUT_REJECTED and str(msg.detail).startswith(STRANGER_KIND + ":"):
             self.strangers.append(str(msg.detail))  # announced once per stranger (the sim's own log line)
         if msg.kind in PRINTED_EVENTS:
-            self.out.write(f"[fly] event at t = {t:.2f} s: {msg.detail}\n")
+            self.out.write(f"[fly] event at t = {t:.2f} s: {event_text(str(msg.detail))}\n")
 
     # actions --------------------------------------------------------------------------------
     def _publish(self, pub: Any, msg: Any) -> None:

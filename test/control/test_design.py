@@ -257,6 +257,17 @@ def test_report_json_has_both_models_and_rank(vertical, canted):
     assert "rank = 6 of 6" in text and "place_varga" in text
 
 
+def test_printed_matrices_and_poles_show_round_off_as_zero_and_never_minus_zero(vertical):
+    """The vertical thrusters' attitude model: cos(pi/2) round-off in A, a pole left at ~1e-16 by
+    the placement; the JSON keeps the computed values, the text shows what they mean."""
+    rep = design_report(vertical, FUEL)
+    A = np.asarray(rep["attitude"]["A"])
+    assert 0 < np.abs(A[A != 0]).min() < 1e-12 * np.abs(A).max()  # the round-off the text must hide
+    text = format_report(rep)
+    tokens = text.replace(",", " ").split()
+    assert "-0" not in tokens and not any("e-1" in t for t in tokens), text
+
+
 def test_design_command_json_and_bad_scene(capsys):
     from lander_tools.commands import design
 

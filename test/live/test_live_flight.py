@@ -298,6 +298,9 @@ def test_pause_step_resume_reset(live: dict[str, Any], capfd: pytest.CaptureFixt
     assert math.isclose(t1, t0 + 3 * DT, abs_tol=1e-9)
     code, _, err = run(capfd, "step", "0")
     assert code == 1 and "steps" in err and len(err.strip().splitlines()) == 1, err
+    # Paused, nothing is published: `echo --once` gives up and says why rather than hang.
+    code, _, err = run(capfd, "echo", "/lander/state", "--once", "--timeout", "2")
+    assert code == 3 and "within 2 s (a paused flight publishes no state" in err, err
     code, out, err = run(capfd, "resume")
     assert code == 0 and out.startswith("lander resume: resumed"), err
     from lander_tools.live.link import FlightLink

@@ -31,6 +31,18 @@ def test_analyse_prints_json_and_writes_plots(tmp_path: Path) -> None:
     assert sorted(p.name for p in (tmp_path / "png").iterdir())[0] == "flight-altitude.png"
 
 
+def test_an_out_path_that_is_a_file_is_one_clear_line_and_the_file_is_untouched(tmp_path: Path) -> None:
+    t = np.arange(0, 10, 0.1)
+    write_flight_bag(tmp_path / "b", t, 500 + np.exp(-t), -np.exp(-t), demand=[(0.0, 500.0)])
+    readme = tmp_path / "README.md"
+    readme.write_text("mine\n")
+    r = _lander(str(tmp_path / "b"), "--out", str(readme))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip().splitlines() == [f"lander analyse: --out {readme}: not a folder (a file of that name "
+                                             "exists); give a folder for the plots"]
+    assert readme.read_text() == "mine\n"
+
+
 def test_analyse_on_corrupt_and_missing_bags_is_one_clear_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad"
     bad.mkdir()

@@ -107,7 +107,8 @@ class AutopilotNode(Node):
 
         # Defaults follow the scene: declare it first, then the rest with its autopilot section.
         scene = check_string("scene", self._declare("scene", "hover"))
-        wanted = scene_autopilot(load_scene(scene))
+        loaded = load_scene(scene)
+        wanted = scene_autopilot(loaded)
         controller = check_string("controller", self._declare("controller", wanted.controller))
         params_text = self._declare("controller_params", dump_controller_params(wanted.parameters))
         demand = self._declare("demand_altitude", wanted.demand_altitude)
@@ -170,7 +171,7 @@ class AutopilotNode(Node):
         self._diag = DiagnosticArray()
         self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"controller {self.slot.name!r} for scene {scene!r}, demand altitude {self.slot.demand.altitude} m"
+            f"controller {self.slot.name!r} for scene {loaded.name!r}, demand altitude {self.slot.demand.altitude} m"
         )
 
     def run(self, executor: SingleThreadedExecutor) -> None:

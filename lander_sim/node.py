@@ -304,13 +304,18 @@ class SimNode(Node):
         self.get_logger().debug(end.detail())
 
     def advance(self, n_steps: int, stop_on_touchdown: bool = False) -> None:
-        """Advance ``n_steps`` physics steps now (services), publishing at every tick boundary."""
-        while n_steps > 0:
-            k = min(self._k, n_steps)
-            self._tick(k)
-            n_steps -= k
-            if self.gate.mode is Mode.ENDED or (stop_on_touchdown and not self.sim.flying):
-                break
+        """Advance ``n_steps`` physics steps now (services), publishing at every tick boundary; the
+        held command flies them all (nobody can answer inside the call) and is not aged by them."""
+        self._hold.step_begins(self.sim.t)
+        try:
+            while n_steps > 0:
+                k = min(self._k, n_steps)
+                self._tick(k)
+                n_steps -= k
+                if self.gate.mode is Mode.ENDED or (stop_on_touchdown and not self.sim.flying):
+                    break
+        finally:
+            self._hold.step_ends(self.sim.t)
         self.pacer.restart()
 
     def _check_staleness(self) -> None:

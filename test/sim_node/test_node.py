@@ -332,6 +332,33 @@ def test_a_held_command_goes_stale_after_the_limit_and_throttles_drop_to_zero(pr
     probe.wait_for(lambda: list(probe.states[-1].throttles) == [0.0] * 4, 10.0, "zero throttles after staleness")
 
 
+def test_a_users_step_flies_the_held_command_and_does_not_age_it(probe, scenes):
+    """Paused, a command set, then a step far longer than the staleness limit: every stepped state
+    flies the command (nobody can answer inside the step), and once the flight runs on its own the
+    command goes stale `limit` after it was accepted, the stepped time not counted."""
+    _load(probe, scenes["vertical"])
+    limit, period, steps = 0.1, 1.0 / 50.0, 25  # the step: 0.5 s of sim time, five limits
+    dt = load_scene(str(scenes["vertical"])).dt
+    probe.set_params(command_timeout=limit)
+    _accepted_after(probe, lambda: probe.send_throttles([1.0, 1.0, 1.0, 1.0]))
+    t_cmd = float(probe.diagnostics[-1]["sim_time"])
+    n_events = len(probe.events)
+    res = probe.call("step", StepSimulation.Request(steps=steps))
+    assert res.success, res.message
+    t_end = t_cmd + steps * dt
+    probe.wait_for(lambda: state_ns(probe.states[-1]) == round(t_end * 1e9), 10.0, "the step's last state")
+    stepped = [s for s in list(probe.states) if t_cmd * 1e9 < state_ns(s) <= t_end * 1e9 + 1]
+    assert stepped and all(list(s.throttles) == [1.0] * 4 for s in stepped), [list(s.throttles) for s in stepped]
+    stale = lambda: [e for e in probe.events[n_events:] if e.kind == FlightEvent.COMMAND_STALE]  # noqa: E731
+    assert not stale()
+    probe.call("resume")
+    probe.wait_for(lambda: bool(stale()), 10.0, "a COMMAND_STALE event once running")
+    probe.call("pause")
+    probe.set_params(command_timeout=0.0)
+    t_stale = state_ns(stale()[0]) * 1e-9
+    assert limit < t_stale - t_end <= limit + period + 1e-9
+
+
 def test_lockstep_waits_for_the_answer_and_counts_a_timeout(probe, scenes):
     _load(probe, scenes["vertical"])
     probe.set_params(lockstep=True, lockstep_timeout=0.3, speed=0.0)

@@ -87,6 +87,12 @@ _FLIGHT_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 #: Demand altitude input: only the newest demand matters, a few queued are plenty.
 _DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
+#: The simulator's status on /diagnostics (lander_sim.node): its ``paused`` value tells a paused
+#: flight from a lost state stream.
+_SIM_STATUS_PREFIX = "lander_sim:"
+#: [s] wall time the simulator's last "paused" report stays good: a few of its reports (1 Hz by
+#: default); past it the simulator has gone quiet, and a missing state is a loss again
+PAUSED_REPORT_TIMEOUT = 5.0
 #: Wall period [s] of the state watchdog (steady clock: it must notice a simulator whose /clock stopped).
 _WATCHDOG_PERIOD = 0.1
 
@@ -143,6 +149,7 @@ class AutopilotNode(Node):
                                                    _FLIGHT_STATE_QOS if self._guard.active else _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, _DEMAND_QOS)
         # "Land": switch to the landing law with demand altitude 0 (docs/autopilot_node.md).
         self.create_service(Trigger, "/autopilot/land", self._srv_land)
         # Matching seen from this side: a writer can count this reader matched before the reader has
@@ -164,6 +171,8 @@ class AutopilotNode(Node):
         self._last_state_wall: float | None = None
         self._state_lost = False
         self._next_lost_report = 0.0
+        self._sim_paused, self._sim_report_wall = False, -float("inf")  # the simulator's latest /diagnostics
+        self._paused_said = False
         self._mode = ""  # the controller mode last announced
         # /diagnostics: compute time per control period, reported on the sim clock (ReportClock).
         self._loop = LoopStats()
@@ -218,6 +227,7 @@ class AutopilotNode(Node):
             return
         first = self._last_state_wall is None
         self._last_state_wall = time.monotonic()
+        self._paused_said = False
         if self._state_lost:
             self._state_lost = False
             if not first:  # the first state ends a start-up wait, not a loss (debug-logged only)
@@ -403,11 +413,24 @@ class AutopilotNode(Node):
 
     # --- health --------------------------------------------------------------------------------
 
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            if st.name.startswith(_SIM_STATUS_PREFIX):
+                self._sim_report_wall = time.monotonic()
+                self._sim_paused = any(kv.key == "paused" and kv.value == "True" for kv in st.values)
+
     def _watchdog(self) -> None:
-        """Report a lost state stream (no command is sent without a state, so nothing unsafe goes out)."""
+        """Report a lost state stream (no command is sent without a state, so nothing unsafe goes out);
+        a simulator that says it is paused has lost nothing: said once, at info level."""
         now = time.monotonic()
         since = self._last_state_wall if self._last_state_wall is not None else self._start_wall
         if now - since <= self._state_timeout:
+            return
+        if self._sim_paused and now - self._sim_report_wall <= PAUSED_REPORT_TIMEOUT:
+            if not self._paused_said and self._last_state_wall is not None:
+                self.get_logger().info("the simulator is paused: waiting for its next state")
+            self._paused_said = True
+            self._next_lost_report = now  # a loss after the pause is reported at once
             return
         if not self._state_lost:
             self._state_lost = True

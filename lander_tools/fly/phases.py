@@ -46,7 +46,7 @@ from lander_tools.fly.plan import (
 )
 from lander_tools.fly.processes import NodeProcess, node_commands, stop_all
 from lander_tools.fly.summary import final_state
-from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call
+from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call, stall_reason
 from lander_tools.fly.timeline import Stop, apply_now, arm, control_period, split_timeline
 from lander_tools.live.bridge import command as live_command
 from lander_tools.progress import Progress
@@ -56,7 +56,8 @@ ANSWER_TIMEOUT = 5.0
 RESET_ATTEMPTS = 3
 #: Wall seconds to wait, after the sim announced the end, for the recorder to hold what it counted.
 DELIVERY_TIMEOUT = 10.0
-#: Wall seconds without a new state (while not paused) after which the flight is an error.
+#: Wall seconds without a new state while the sim runs (without any word from it while it is
+#: paused) after which the flight is an error (lander_tools.fly.supervisor.stall_reason).
 STALL_TIMEOUT = 30.0
 #: Wall seconds a start-up question to the sim stays unanswered before it is asked again (a
 #: service request can be lost while discovery is still matching the reply's reader).
@@ -339,8 +340,10 @@ def run_to_end(f: LaunchedFlight, stops: list[Stop]) -> None:
         if time.monotonic() >= next_look:
             next_look = time.monotonic() + GRAPH_WATCH_PERIOD
             _watch_graph(f)
-        if time.monotonic() - sup.last_state_wall > STALL_TIMEOUT:
-            raise LaunchError(f"no state from the simulator for {STALL_TIMEOUT} s at t = {sup.t:.3f} s")
+        stalled = stall_reason(time.monotonic(), sup.last_state_wall, sup.sim_paused, sup.sim_word_wall, sup.t,
+                               STALL_TIMEOUT)
+        if stalled is not None:
+            raise LaunchError(stalled)
         f.spin()
         sup.check_futures()
         if stops and sup.flight_end is None and sup.clock_t >= stops[0].t - 1e-6:

@@ -57,6 +57,18 @@ def event_text(detail: str) -> str:
     return text if sep and names.endswith("]") else detail
 
 
+def stall_reason(now: float, last_state_wall: float, paused: bool, last_word_wall: float, t: float,
+                 limit: float) -> str | None:
+    """Why a flight counts as stalled at wall time ``now`` [s], else None: no state for ``limit`` s
+    while the simulator runs, or, while it says it is paused (its ``/diagnostics``), no word from
+    it at all for ``limit`` s. A paused flight stays paused as long as the user wants."""
+    if now - last_state_wall <= limit or (paused and now - last_word_wall <= limit):
+        return None
+    if paused:
+        return f"no word from the simulator for {limit} s (paused at t = {t:.3f} s)"
+    return f"no state from the simulator for {limit} s at t = {t:.3f} s"
+
+
 class Supervisor:
     """The launcher's own node: watches the flight, applies the timeline, records, counts.
 
@@ -86,6 +98,9 @@ class Supervisor:
         self.states = 0
         self.t = 0.0
         self.last_state_wall = time.monotonic()
+        #: What the sim's latest /diagnostics said (paused or not) and when it came (wall clock)
+        self.sim_paused = False
+        self.sim_word_wall = time.monotonic()
         #: The sim's FLIGHT_ENDED, decoded: the flight is over.
         self.flight_end: FlightEnd | None = None
         #: Named values of the LANDED / CRASHED event (t_impact [s], descent_rate [m/s], ...).
@@ -132,8 +147,9 @@ class Supervisor:
         if self.controller is not None:
             subs["/autopilot/status"] = n.create_subscription(
                 AutopilotStatus, "/autopilot/status", lambda _m: self._count("/autopilot/status"), RELIABLE)
-            # The autopilot's reports on /diagnostics (the sim counts its own): the bag check's reference.
-            subs["/diagnostics"] = n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, RELIABLE)
+        # The autopilot's reports (the bag check's reference; the sim counts its own) and the sim's
+        # (paused or running: the stall watch, stall_reason).
+        subs["/diagnostics"] = n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, RELIABLE)
         return subs
 
     def _create_recorder(self) -> Recorder | None:
@@ -158,6 +174,10 @@ class Supervisor:
     def _on_diagnostics(self, msg: Any) -> None:
         if any(st.name.startswith(f"{AUTOPILOT_NODE}:") for st in msg.status):
             self._count("/diagnostics")  # the autopilot's only: the sim's come from FLIGHT_ENDED
+        for st in msg.status:
+            if st.name.startswith(f"{SIM_NODE}:"):
+                self.sim_word_wall = time.monotonic()
+                self.sim_paused = any(kv.key == "paused" and kv.value == "True" for kv in st.values)
 
     def _on_throttle(self, msg: Any) -> None:
         self._count("/lander/throttle")

@@ -315,6 +315,30 @@ def test_pause_step_resume_reset(live: dict[str, Any], capfd: pytest.CaptureFixt
         wait_until(lambda: (1, 0.0) in states, 30.0, "state 1 at t = 0: a new epoch")
 
 
+def test_a_paused_flight_stays_paused_past_the_launchers_stall_watch_and_resumes(
+        live: dict[str, Any], capfd: pytest.CaptureFixture[str]) -> None:
+    """Paused from a verb for longer than the launcher waits for a state from a running flight:
+    the flight is still there, the autopilot has not called the state lost, and it resumes."""
+    import time
+
+    from lander_tools.fly.phases import STALL_TIMEOUT
+
+    fly = live["fly"]
+    code, out, err = run(capfd, "pause")
+    assert code == 0, err
+    paused_wall, seen = time.monotonic(), len(fly.output())
+    # The property is a duration: the wait ends at the stall watch's limit and some reports after.
+    wait_until(lambda: fly.returncode is not None or time.monotonic() - paused_wall > STALL_TIMEOUT + 3.0,
+               STALL_TIMEOUT + 30.0, "the stall watch's limit to pass")
+    during = fly.output()[seen:]
+    assert fly.returncode is None, during
+    assert "state lost" not in during and "no state from the simulator" not in during, during
+    code, out, err = run(capfd, "resume")
+    assert code == 0 and out.startswith("lander resume: resumed"), err
+    t_resumed = _state(live["client"])["t"]
+    wait_until(lambda: _state(live["client"])["t"] > t_resumed, 30.0, "states again after the resume")
+
+
 # --- the student page in a real browser ----------------------------------------------------------
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

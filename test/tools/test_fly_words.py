@@ -1,6 +1,6 @@
 """What `lander fly` prints is in the user's words: an event's sentence without the key of its
 numbers (that key is for programs: lander_tools.fly.supervisor.event_values reads it), a scene
-given by its scenario number named as well."""
+given by its scenario number named as well; and a paused flight is not called stalled."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -23,3 +23,15 @@ def test_a_scene_given_by_its_scenario_number_is_named() -> None:
     assert scene_label("7") == "'hover' (scenario 7)"
     assert scene_label("hover") == "'hover'"
     assert scene_label("flights/x.yaml") == "'flights/x.yaml'"
+
+
+def test_a_paused_flight_is_not_stalled_while_the_simulator_still_reports() -> None:
+    from lander_tools.fly.supervisor import stall_reason
+
+    limit, t = 30.0, 12.3
+    assert stall_reason(100.0, 75.0, False, 99.0, t, limit) is None  # a state 25 s ago
+    running = stall_reason(100.0, 60.0, False, 99.0, t, limit)  # running, no state for 40 s
+    assert running == "no state from the simulator for 30.0 s at t = 12.300 s"
+    assert stall_reason(1000.0, 60.0, True, 999.0, t, limit) is None  # paused for 15 min, reporting
+    gone = stall_reason(1000.0, 60.0, True, 960.0, t, limit)  # paused, then silent for 40 s
+    assert gone == "no word from the simulator for 30.0 s (paused at t = 12.300 s)"

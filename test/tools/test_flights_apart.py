@@ -13,7 +13,9 @@ flight is another ``lander fly`` on this machine (the domain's lock) or a simula
 Every flight here is the same short hover (hover-canted, 20 s of sim time, lockstep), flown at 2x
 or 4x real time where the test acts while it flies (flat out for the reference); the simulator's
 lockstep_timeout is raised to 20 s, so a loaded machine cannot make it advance without the
-autopilot's answer, and the flight is the same at any speed.
+autopilot's answer, and the flight is the same at any speed. The flight another simulator joins is
+held paused (`lander pause`) until the launcher has seen the stranger, so the join is mid-way
+however slowly the stranger starts.
 """
 from __future__ import annotations
 
@@ -258,10 +260,25 @@ def test_a_flight_joined_mid_way_says_so_and_a_refused_flight_keeps_no_bag(alone
     joiner = refused = None
     try:
         obs.wait_for(lambda: bool(states), LAUNCH_TIMEOUT, "the flight's first state")
+        # Held paused until the stranger has joined and been seen: the join is mid-way however long
+        # the stranger's start-up takes on a loaded machine.
+        paused = verb("pause")
+        assert paused.returncode == 0, paused.stdout + paused.stderr
+        obs.drain()
+        held = len(states)  # from here on, states come from the stranger only
         # Someone else's simulator, running on its own (no launcher), and someone else's `lander fly`.
         joiner = rosutil.start_node("lander_sim.node", {"scene": "hover-canted", "speed": 1.0}, name="joiner")
+        fly.wait_line(r"another flight joined")
+        obs.wait_for(lambda: len(states) >= held + 3, LAUNCH_TIMEOUT, "the stranger's states")
         refused = Fly(tmp_path / "refused", params_file, flight_env(), speed=0.0)
         rc_refused, out_refused = refused.finish()
+        # The stranger leaves, so that the flight's own simulator is the one /lander/resume reaches
+        # (a service of two servers answers from one of them).
+        joiner.close()
+        joiner = None
+        obs.wait_for(lambda: _nodes_named(obs, "lander_sim") == 1, LAUNCH_TIMEOUT, "the stranger gone from the graph")
+        resumed = verb("resume")
+        assert resumed.returncode == 0, resumed.stdout + resumed.stderr
         rc, out = fly.finish()
     finally:
         for f in (fly, refused):
@@ -301,6 +318,16 @@ def test_a_flight_is_refused_where_a_simulator_started_by_hand_runs(params_file:
         obs.close()
     assert rc == 2 and "another flight is running in ROS_DOMAIN_ID=" in out, out
     assert not (tmp_path / "refused").exists(), out
+
+
+def _nodes_named(obs: rosutil.Observer, name: str) -> int:
+    return sum(1 for n, _ns in obs.node.get_node_names_and_namespaces() if n == name)
+
+
+def verb(*argv: str) -> subprocess.CompletedProcess[str]:
+    """A `lander` verb in the test's domain, as the user runs it."""
+    return subprocess.run([sys.executable, "-m", "lander_tools.cli", *argv, "--wait", "60"], capture_output=True,
+                          text=True, cwd=REPO, env=flight_env(), timeout=LAUNCH_TIMEOUT)
 
 
 def _in_order_within(wanted: list[bytes], got: list[bytes]) -> bool:

@@ -277,8 +277,12 @@ def test_a_flight_joined_mid_way_says_so_and_a_refused_flight_keeps_no_bag(alone
         joiner.close()
         joiner = None
         obs.wait_for(lambda: _nodes_named(obs, "lander_sim") == 1, LAUNCH_TIMEOUT, "the stranger gone from the graph")
-        resumed = verb("resume")
-        assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+        # Resumed through this test's node, which has the flight's simulator in its graph already.
+        from std_srvs.srv import Trigger
+
+        resume = obs.node.create_client(Trigger, "/lander/resume")
+        resumed = obs.call(resume)
+        assert resumed.success, resumed.message
         rc, out = fly.finish()
     finally:
         for f in (fly, refused):

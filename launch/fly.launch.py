@@ -38,7 +38,7 @@ def _shutdown_on_exit(action, reason: str) -> RegisterEventHandler:
 def _nodes(context):
     plan = launch_plan({name: LaunchConfiguration(name).perform(context) for name in ARGS}, _scene_controller)
     sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
-               parameters=[*plan.sim_defaults, *plan.files, plan.sim])
+               parameters=[*plan.files, plan.sim])
     actions = [sim, _shutdown_on_exit(sim, "sim exited")]
     if plan.autopilot is not None:
         actions.append(Node(package="mars_lander", executable="autopilot_node", name="autopilot", output="screen",

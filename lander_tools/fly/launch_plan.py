@@ -41,12 +41,10 @@ NODE_WAIT_S = 30.0
 class LaunchPlan:
     """The processes of one launched flight.
 
-    ``sim_defaults`` come before the params files (a file's value wins), ``sim`` after them (the
-    launch arguments win); ``autopilot`` is None for the sim alone; ``ender`` is the argv after
-    ``lander`` of the process whose exit shuts the launch down, for the reason ``end_reason``."""
+    ``sim`` comes after the params files (the launch arguments win); ``autopilot`` is None for the
+    sim alone; ``ender`` is the argv after ``lander`` of the process whose exit shuts the launch down, for the reason ``end_reason``."""
 
     sim: dict[str, Any]
-    sim_defaults: list[dict[str, Any]]
     files: list[str]
     autopilot: dict[str, Any] | None
     ender: list[str] = field(default_factory=list)
@@ -58,8 +56,6 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str]) 
 
     ``scene_controller(scene)`` names the scene's own autopilot controller, '' when it has none.
     Raises ValueError naming an argument that is not a number where one is needed."""
-    from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT
-
     controller = arg["controller"] or scene_controller(arg["scene"])
     if controller.lower() == "none":
         controller = ""
@@ -70,8 +66,6 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str]) 
         sim["command_timeout"] = 0.0  # the sim alone holds the last command for good
     if arg["duration"]:
         sim["end_time"] = _number(arg, "duration")  # the sim stops itself there (docs/sim_node.md)
-    # As `lander fly`: flat out in lockstep the sim waits out a slow answer; a params file's value wins.
-    defaults = [{"lockstep_timeout": FLAT_OUT_LOCKSTEP_TIMEOUT}] if sim["lockstep"] and speed == 0 else []
     files = [arg["params_file"]] if arg["params_file"] else []
     autopilot = ({"scene": arg["scene"], "controller": controller, "use_sim_time": True} if controller else None)
     wait = ["--wait", f"{NODE_WAIT_S:g}"]
@@ -83,7 +77,7 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str]) 
     else:
         ender = ["start", *(["--autopilot"] if controller else []), "--until-end", *wait]
         reason = "flight ended"
-    return LaunchPlan(sim, defaults, files, autopilot, ender, reason)
+    return LaunchPlan(sim, files, autopilot, ender, reason)
 
 
 def _number(arg: Mapping[str, str], name: str) -> float:

@@ -6,4 +6,6 @@
   flown descent laws are measured against (docs/deorbit.md).
 * :mod:`.descent_mpc`   model predictive control of the powered descent, tracking that optimum
   within the thrust, pointing and glide-slope limits (one cone-constrained QP a control period).
+* :mod:`.conic_program` a cvxpy programme canonicalised once and solved by Clarabel directly each
+  period (the MPC's solve inside its control period).
 """

@@ -62,20 +62,32 @@ and its late end cost 3 %. Minimising the fuel itself flies 1.004 x there.
 
 Why this solver: the fuel is a sum of second-order-cone norms and the thrust and pointing limits are
 cones too, so each period's problem is an SOCP, which Clarabel (interior point, installed with the
-project) solves natively and to high accuracy in ~10 ms for ``H = 20``. OSQP needs a QP (the
-cones replaced by polyhedra: an inner approximation costs thrust, an outer one violates the limit);
-do-mpc would add a CasADi/IPOPT stack for a problem that is convex anyway. The problem is built
-once with cvxpy parameters (DPP), so a period costs one solve, no compilation.
+project) solves natively and to high accuracy. OSQP needs a QP (the cones replaced by polyhedra: an
+inner approximation costs thrust, an outer one violates the limit); do-mpc would add a CasADi/IPOPT
+stack for a problem that is convex anyway.
+
+Why this call, in a control period of 0.1 s on a machine whose two cores also fly the simulation:
+the programme is written once with cvxpy parameters in DPP form (each product of the step with the
+drag's linearisation is a parameter of its own: a parameter times a parameter times a variable is
+not DPP, and cvxpy then compiles the whole programme anew at every call), canonicalised once, and
+each period handed to Clarabel directly (:class:`.conic_program.ConicProgram`: the parameters times
+cvxpy's own sparse data tensor, then a fresh solver; the same data and the same answer as cvxpy's
+Clarabel interface, to the bit). What is left per period is Clarabel's own iterations (~10) and its
+set-up: over the de-orbit sweeps' MPC flights ~2 ms at the median, p99 7 ms, worst 9 ms with the
+cores shared three to four ways; compiled each period the same programme took 5-8 times that at the
+median and single periods of 0.3 s (``bench/guidance_mpc.py``, both side by side). Left aside: a solver generated for the fixed shape (cvxpygen, QOCOGEN) would add a C build
+to the set-up to shorten what is already well inside the period; warm starts, which an
+interior-point method cannot use (it starts from its own central point).
 """
 from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .conic_program import ConicProgram
 from .fuel_optimal import DescentLimits, DescentProblem, DescentSolution, DragModel, GuidanceError, drag_up, solve
 
 #: [-] default thrust bound of the reference and of each period's programme, of ``rho_max``: the
@@ -167,6 +179,19 @@ class Reference:
         # reference's own discretisation, well under what the feedback corrects
         return lerp(s.position_L), lerp(s.velocity_L), lerp(acc)
 
+    def along(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Reference positions and velocities, rows ``(len(times), 3)``, at each of ``times`` s after the
+        handover: :meth:`at`'s interpolation, for many times at once (each period's drag points)."""
+        s = self.sol
+        t = np.maximum(np.asarray(times, float), 0.0)
+        k = np.minimum((t / (s.final_time / (len(s.t) - 1))).astype(int), len(s.t) - 2)
+        w = ((t - s.t[k]) / (s.t[k + 1] - s.t[k]))[:, None]
+        pos = (1 - w) * s.position_L[k] + w * s.position_L[k + 1]
+        vel = (1 - w) * s.velocity_L[k] + w * s.velocity_L[k + 1]
+        after = t >= s.final_time
+        pos[after], vel[after] = self.target, 0.0
+        return pos, vel
+
 
 class DescentMpc:
     """The receding-horizon law; :meth:`command` gives the thrust vector to fly now.
@@ -207,15 +232,16 @@ class DescentMpc:
         self._fuel_w = cp.Parameter(H, nonneg=True)  # predicted mass x h: sum w |a| = the impulse (fuel / alpha)
         # drag acceleration over each predicted step, linearised about the reference: a_D(v) ~
         # d0 + D v (D the diagonal of d a_D / d v), so that the QP sees that a faster fall brakes more
-        # for free (what makes the optimum coast and then burn late)
-        self._d0 = cp.Parameter((H, 3))
-        self._dv = cp.Parameter((H, 3), nonpos=True)
+        # for free (what makes the optimum coast and then burn late). Each enters times h and h^2/2,
+        # as parameters of their own (h (d0 + g_L), h D, ...): a parameter times a parameter times a
+        # variable is not DPP, and cvxpy would then compile the whole programme again every period
+        self._push_h = cp.Parameter((H, 3))  # h (d0 + g_L): velocity gained over the step without thrust
+        self._push_hh = cp.Parameter((H, 3))  # h^2/2 (d0 + g_L): its share of the step's displacement
+        self._slow_h = cp.Parameter((H, 3), nonpos=True)  # h D: the drag's slope on the step's mean velocity
+        self._slow_hh = cp.Parameter((H, 3), nonpos=True)  # h^2/2 D
         self._end_w = cp.Parameter(nonneg=True)
         x = cp.Variable((H + 1, 6))
         a = cp.Variable((H, 3))
-        g_L = np.array([0.0, 0.0, -self.g])
-        # drag at each step's mean velocity (trapezoidal): the fall slows by ~8 m/s over a 0.45 s step at
-        # full thrust, and drag at the step's start overstated the braking (the plan ended ~2 m low)
         lag_cons = []
         if st.attitude_lag > 0:
             # The thrust axis follows the command with a lag (the attitude loop's): the horizontal
@@ -229,10 +255,13 @@ class DescentMpc:
             thrust = cp.hstack([(r[:-1] + r[1:]) / 2, a[:, 2:3]])
         else:
             thrust = a
-        acc = thrust + self._d0 + cp.multiply(self._dv, (x[:-1, 3:] + x[1:, 3:]) / 2) + np.ones((H, 1)) @ g_L[None, :]
+        # drag at each step's mean velocity (trapezoidal): the fall slows by ~8 m/s over a 0.45 s step at
+        # full thrust, and drag at the step's start overstated the braking (the plan ended ~2 m low)
+        v_mean = (x[:-1, 3:] + x[1:, 3:]) / 2
         cons = lag_cons + [x[0] == self._x0,
-                x[1:, :3] == x[:-1, :3] + self._h * x[:-1, 3:] + self._hh * acc,
-                x[1:, 3:] == x[:-1, 3:] + self._h * acc,
+                x[1:, :3] == (x[:-1, :3] + self._h * x[:-1, 3:] + self._hh * thrust + self._push_hh
+                              + cp.multiply(self._slow_hh, v_mean)),
+                x[1:, 3:] == x[:-1, 3:] + self._h * thrust + self._push_h + cp.multiply(self._slow_h, v_mean),
                 cp.norm(a, axis=1) <= self._amax,
                 a[:, 2] >= math.cos(limits.max_tilt) * cp.norm(a, axis=1),
                 x[:, 2] >= 0]
@@ -246,7 +275,7 @@ class DescentMpc:
         miss = x[H, 2:] - np.r_[self.target[2], 0.0, 0.0, 0.0] if free_horizontal else x[H] - np.r_[self.target, 0, 0, 0]
         cost = cp.sum(cp.multiply(self._fuel_w, cp.norm(a, axis=1))) + self._end_w * cp.norm1(miss)
         self._a = a
-        self._program = cp.Problem(cp.Minimize(cost), cons)
+        self._program = ConicProgram(cp.Problem(cp.Minimize(cost), cons))
         self._last = self.reference.at(0.0)[2]
 
     def command(self, t: float, position_L: np.ndarray, velocity_L: np.ndarray, mass: float,
@@ -258,8 +287,6 @@ class DescentMpc:
         ``available``: fraction of ``rho_max`` the thrusters can give now (the rest is the attitude
         law's, :class:`lander_autopilot.controllers.combined.CollectiveHeadroom`).
         """
-        import cvxpy as cp
-
         st = self.settings
         H = st.horizon_steps
         sol = self.reference.sol
@@ -270,43 +297,42 @@ class DescentMpc:
         tk = t + h * np.arange(H)
         ref_mass = np.interp(tk, sol.t, sol.mass)
         m_k = np.maximum(mass - (ref_mass[0] - ref_mass), self.limits.dry_mass)  # burning as the reference does
-        self._h.value, self._hh.value = h, h * h / 2
-        self._x0.value = np.r_[position_L, velocity_L]
+        put = self._program.set
+        put(self._h, h)
+        put(self._hh, h * h / 2)
+        put(self._x0, np.r_[position_L, velocity_L])
         amax = st.plan_thrust_fraction * available * self.limits.rho_max / m_k
         # tightened with the time ahead (what a disturbance can have done by then grows with it): the
         # step flown now may use the whole bound, a step reserve_time or more ahead keeps plan_reserve
         amax *= 1.0 - st.plan_reserve * np.minimum(h * np.arange(H) / st.reserve_time, 1.0)
-        self._amax.value = amax
-        self._fuel_w.value = m_k * h
-        self._end_w.value = st.end_penalty * mass
+        put(self._amax, amax)
+        put(self._fuel_w, m_k * h)
+        put(self._end_w, st.end_penalty * mass)
         if st.attitude_lag > 0:
             keep = math.exp(-h / st.attitude_lag)
-            self._keep.value, self._gain.value = keep, 1.0 - keep
-            self._r0.value = (float(np.linalg.norm(self._last)) * np.asarray(thrust_axis_L, float)[:2]
-                              if thrust_axis_L is not None else self._last[:2])
+            put(self._keep, keep)
+            put(self._gain, 1.0 - keep)
+            put(self._r0, float(np.linalg.norm(self._last)) * np.asarray(thrust_axis_L, float)[:2]
+                if thrust_axis_L is not None else self._last[:2])
         if self.drag is None:
-            self._d0.value, self._dv.value = np.zeros((H, 3)), np.zeros((H, 3))
+            d0, dv = np.zeros((H, 3)), np.zeros((H, 3))
         else:
             # about the reference, except the first step: about the measured state
-            pos, vel = np.empty((H, 3)), np.empty((H, 3))
-            for k in range(1, H):
-                pos[k], vel[k], _ = self.reference.at(tk[k] + h / 2)
+            pos, vel = self.reference.along(tk + h / 2)
             pos[0], vel[0] = position_L, velocity_L
             dv = np.minimum(np.diagonal(self.drag.jacobian(pos, vel, m_k), axis1=1, axis2=2), 0.0)
-            self._dv.value = dv
-            self._d0.value = self.drag.acceleration(pos, vel, m_k) - dv * vel
+            d0 = self.drag.acceleration(pos, vel, m_k) - dv * vel
+        push = d0 + np.array([0.0, 0.0, -self.g])
+        put(self._push_h, h * push)
+        put(self._push_hh, (h * h / 2) * push)
+        put(self._slow_h, h * dv)
+        put(self._slow_hh, (h * h / 2) * dv)
         t0 = time.perf_counter()
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)  # optimal_inaccurate is checked below
-                self._program.solve(solver=cp.CLARABEL)
-            ok = self._program.status in ("optimal", "optimal_inaccurate") and self._a.value is not None
-        except cp.error.SolverError:
-            ok = False
+        ok = self._program.solve()
         self.stats.solve_times.append(time.perf_counter() - t0)
         if ok:
             n = min(max(int(round(st.hold_time / h)), 1), H)  # the plan's steps the command is flown over
-            self._last = np.array(self._a.value[:n].mean(axis=0))
+            self._last = np.array(self._program.value(self._a)[:n].mean(axis=0))
         else:
             self.stats.failures += 1  # hold the last command: the next period tries again
         acc = self._last

@@ -126,6 +126,19 @@ def test_the_limb_is_the_constant_deceleration_to_rest_at_the_target():
     assert T == pytest.approx([0.0, 0.0, LIMITS.rho_max], rel=1e-12)
 
 
+def test_the_reference_along_many_times_is_its_value_at_each():
+    r0, v0, m0 = np.array([0.0, 0.0, 800.0]), np.array([0.0, 0.0, -40.0]), 170.0
+    ref = DescentMpc(r0, v0, m0, SURFACE_GRAVITY, LIMITS, TARGET, free_horizontal=True).reference
+    t_f = ref.sol.final_time
+    # before the handover, on the nodes, between them, at the end and past it (the hover at the target)
+    times = np.r_[-1.0, ref.sol.t[:3], np.linspace(0.0, t_f, 37), t_f, t_f + 2.0]
+    pos, vel = ref.along(times)
+    for t, p, v in zip(times, pos, vel, strict=True):
+        at_p, at_v, _ = ref.at(float(t))
+        np.testing.assert_array_equal(p, at_p)
+        np.testing.assert_array_equal(v, at_v)
+
+
 def test_mpc_holds_its_settings_to_account():
     with pytest.raises(GuidanceError, match="reference_thrust_fraction"):
         MpcSettings(reference_thrust_fraction=1.5)

@@ -179,15 +179,16 @@ def time_references(states: Sequence[dict[str, Any]], steps: int = STEPS, t_tol:
     for rec in states:
         problem = problem_of(rec)
         calls[0] = 0
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         try:
             sol = fuel_optimal.solve(problem, steps=steps, t_tol=t_tol)
             fuel, tf, count = sol.fuel, sol.final_time, sol.solve_count
         except fuel_optimal.GuidanceError:
             fuel = tf = math.nan
             count = 0
-        wall = time.perf_counter() - t0
-        out.append({"source": rec["source"], "wall": wall, "solves": calls[0] or count, "fuel": fuel, "final_time": tf})
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        out.append({"source": rec["source"], "wall": wall, "cpu": cpu, "solves": calls[0] or count, "fuel": fuel,
+                    "final_time": tf})
     cp.Problem.solve = plain  # type: ignore[method-assign]
     return out
 
@@ -237,6 +238,8 @@ class Row:
     wall_median: float  # [s]
     wall_p99: float
     wall_max: float
+    cpu_median: float  # [s] CPU time of the process (the solvers are single-threaded): what the
+    cpu_p99: float  #      reference costs with the machine to itself
     solves_median: float
     fuel_mean: float  # [kg]
     fuel_diff_max: float  # largest |fuel_A - fuel_B| / fuel_B over the states (0 for B)
@@ -256,17 +259,20 @@ def summarise(a: Sequence[dict[str, Any]], b: Sequence[dict[str, Any]], name_a: 
             fuel = np.array([side[i]["fuel"] for i in idx])
             ref = np.array([b[i]["fuel"] for i in idx])
             diff = np.abs(fuel - ref) / ref
+            cpu = np.array([side[i]["cpu"] for i in idx])
             rows.append(Row(name, label, len(idx), float(np.median(wall)), float(np.percentile(wall, 99)),
-                            float(wall.max()), float(np.median([side[i]["solves"] for i in idx])),
+                            float(wall.max()), float(np.median(cpu)), float(np.percentile(cpu, 99)),
+                            float(np.median([side[i]["solves"] for i in idx])),
                             float(np.nanmean(fuel)), float(np.nanmax(diff)) if np.isfinite(diff).any() else math.nan))
     return rows
 
 
 def format_table(rows: Sequence[Row]) -> str:
     body = [[r.tree, r.states, str(r.n), f"{1e3 * r.wall_median:.1f}", f"{1e3 * r.wall_p99:.1f}", f"{1e3 * r.wall_max:.1f}",
-             f"{r.solves_median:.0f}", f"{r.fuel_mean:.4f}", f"{100 * r.fuel_diff_max:.4f}"] for r in rows]
-    header = ["tree", "handover states", "n", "median [ms]", "p99 [ms]", "max [ms]", "convex solves (median)",
-              "mean fuel [kg]", "max |dfuel| / fuel_B [%]"]
+             f"{1e3 * r.cpu_median:.1f}", f"{1e3 * r.cpu_p99:.1f}", f"{r.solves_median:.0f}", f"{r.fuel_mean:.4f}",
+             f"{100 * r.fuel_diff_max:.4f}"] for r in rows]
+    header = ["tree", "handover states", "n", "wall median [ms]", "p99", "max", "CPU median [ms]", "p99",
+              "convex solves (median)", "mean fuel [kg]", "max |dfuel| / fuel_B [%]"]
     w = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
     line = "  ".join(h.ljust(w[i]) for i, h in enumerate(header))
     out = [line, "-" * len(line)] + ["  ".join(c.ljust(w[i]) if i < 2 else c.rjust(w[i]) for i, c in enumerate(r)) for r in body]

@@ -38,24 +38,26 @@ infeasible (no burn stops the fall in time), and the fuel falls steeply from the
 minimum (~10 kg/s over the first hundredths of a second on a de-orbit case) and rises slowly past
 it (~0.8 kg/s on the common handover, whose minimum is on the edge itself). A drag-free vertical
 fall to rest is the same bang-bang, on the edge. So the search is (1) a scan, short final times
-first, for the first feasible one on a grid; (2) bisection of the feasibility edge below it; (3)
-from the edge, steps doubling until the fuel rises, then golden section inside that bracket
-(unimodal); each trial one convex solve, the first pass (thrust bound about the flat-out burn,
-drag about a linear fall to rest): feasibility and the place of the minimum need no converged
-drag, whose error varies slowly with ``t_f``. All on a coarse programme of ``SEARCH_STEPS`` nodes
-(a fifth of the solve time of 60), then (4) golden section again on the caller's ``steps`` within
-``FINE_BRACKET`` of the coarse minimum, and the drag converged at the best final time only. With
-drag that is ~25 coarse and ~8 fine solves, against ~150 for a golden section of converged drag
-solves at every trial final time; (5) where the drag does not settle there, that plain search is
-the fall-back.
+first, for the first feasible one on a grid; (2) bisection of the feasibility edge below it, each
+trial one convex solve, the first pass (thrust bound about the flat-out burn, drag about a linear
+fall to rest: feasibility needs no converged drag); (3) from the edge, steps doubling until the
+fuel rises, then golden section inside that bracket (unimodal), the drag converged at each trial
+but started from the converged trial nearest in final time (two passes where a cold start takes
+three to fifteen: the first pass's own fuel is biased by its crude linearisation, enough to move
+the minimum beside the steep edge). All on a coarse programme of ``SEARCH_STEPS`` nodes (a fifth
+of the solve time of 60), then (4) the golden section again on the caller's ``steps`` within
+``FINE_BRACKET`` of the coarse minimum. With drag that is ~45 convex solves, two thirds of them
+on the coarse programme, against ~150 solves through a modelling layer for a golden section of
+cold-started drag iterations at every trial final time; (5) where the drag settles at none of
+them, that plain search on the caller's programme is the fall-back.
 
 Solver: Clarabel (an interior-point conic solver, installed with the project) on the conic
 matrices laid out once (:mod:`.descent_conic`): the problem is a second-order cone programme,
 which OSQP (a QP solver) cannot take. Measured side by side on the de-orbit handovers
 (bench/guidance_reference.py): the modelling layer's canonicalisation and Clarabel's iterative
 refinement were each about half of a 60-node pass; QOCO and ECOS (smaller interior-point codes)
-solved the same matrices no faster than Clarabel on this 2-core machine, and a generated solver
-would add a build step to the set-up for a share of a solve time the search no longer needs.
+solved the same matrices no faster than Clarabel on this 2-core machine (a few runs each, the
+machine shared); a generated solver (cvxpygen, QOCOGEN) was not measured.
 :class:`CvxpyProgram` keeps the cvxpy formulation as an independent cross-check (``backend``).
 """
 from __future__ import annotations
@@ -436,12 +438,13 @@ class _Search:
         return b
 
     def rise(self, t0: float, step: float, t_max: float) -> tuple[float, float]:
-        """From ``t0`` (feasible) steps doubling from ``step`` until the first-pass fuel rises: the
-        bracket ``[a, b]`` of its minimum (unimodal), ``b`` at most ``t_max``."""
-        ts, fs = [t0], [self.first(t0)]
+        """From ``t0`` (feasible) steps doubling from ``step`` until the converged fuel (each trial
+        warm from the one before) rises: the bracket ``[a, b]`` of its minimum (unimodal), ``b`` at
+        most ``t_max``."""
+        ts, fs = [t0], [self.fuel(t0)]
         while ts[-1] < t_max:
             ts.append(min(t0 + step * 2 ** (len(ts) - 1), t_max))
-            fs.append(self.first(ts[-1]))
+            fs.append(self.fuel(ts[-1], warm=True))
             if fs[-1] > fs[-2]:
                 break
         return ts[max(len(ts) - 3, 0)], ts[-1]
@@ -475,7 +478,7 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     # bracket by doubling steps, then golden section, all on the coarse programme
     t_edge = coarse.edge(grid[k - 1], grid[k], tol(grid[k])) if k > 0 else grid[0]
     a, b = coarse.rise(t_edge, tol(t_edge), hi)
-    t_coarse = _Search.golden(coarse.first, a, b, tol(a) * EDGE_SHARE)
+    t_coarse = _Search.golden(lambda t: coarse.fuel(t, warm=True), a, b, tol(a) * EDGE_SHARE)
     # (4) golden section of the converged fuel on the fine programme about the coarse minimum,
     # each trial warm from the nearest one before
     width = FINE_BRACKET * max(1.0, t_coarse)

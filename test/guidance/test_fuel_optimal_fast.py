@@ -22,9 +22,11 @@ from lander_sim.physics.constants import LANDER_DRY_MASS, LANDER_FUEL_RATE, LAND
 
 LIMITS = DescentLimits(rho_max=4 * LANDER_MAX_THRUST, alpha=LANDER_FUEL_RATE / LANDER_MAX_THRUST,
                        dry_mass=LANDER_DRY_MASS)
-#: Clarabel's gap tolerance (1e-8 relative, both back-ends) on the objective ln m_N ~ 5: the fuel
-#: to ~1e-7 of the mass; the two formulations scale their rows differently, so a factor 10 more
-RELATIVE = 1e-6
+#: Both back-ends stop Clarabel at a duality gap of 1e-8 (absolute) + 1e-8 |ln m_N| (~5) and primal
+#: residuals of 1e-8 of the data's norm (~1e3 m, m/s): the objective ln m_N to ~1e-7, and the two
+#: formulations scale their rows differently, so 1e-6 on ln m_N (the fuel to 1e-6 of the mass, a
+#: few 1e-6 of the fuel, which is a fifth of the mass)
+LOG_MASS = 1e-6
 
 
 def _handover() -> DescentProblem:
@@ -76,12 +78,13 @@ def test_one_pass_is_the_cvxpy_formulations_optimum(name):
     fast = ConicProgram(problem, steps).solve(final_time / steps, lin)
     oracle = CvxpyProgram(problem, steps).solve(final_time / steps, lin)
     assert fast is not None and oracle is not None
-    fuel_fast, fuel_oracle = problem.mass - math.exp(fast.z[-1]), problem.mass - math.exp(oracle.z[-1])
-    assert fuel_fast == pytest.approx(fuel_oracle, rel=RELATIVE)
-    # and the same trajectory where the optimum is unique (the thrust's strict convexity with drag;
-    # the end pinned): the end state to the solver's feasibility tolerance of a 1 km problem
-    np.testing.assert_allclose(fast.r[-1], oracle.r[-1], atol=1e-4)
-    np.testing.assert_allclose(fast.v[-1], oracle.v[-1], atol=1e-4)
+    assert abs(fast.z[-1] - oracle.z[-1]) < LOG_MASS
+    # and the same end where it is pinned (at rest on the target, or at rest at the chute's hover
+    # altitude): to the solvers' feasibility tolerance of a 1 km problem. Within an end band the
+    # end is a face of equal fuel, any point of which is the optimum.
+    if problem.end_band == 0 and problem.end_speed == 0:
+        np.testing.assert_allclose(fast.r[-1, 2], oracle.r[-1, 2], atol=1e-4)
+        np.testing.assert_allclose(fast.v[-1], oracle.v[-1], atol=1e-4)
 
 
 def test_an_infeasible_pass_is_none_in_both_formulations():

@@ -19,8 +19,12 @@ export), one after the other on the same states. One table: wall time median / p
 reference, convex solves per reference, the fuel of each tree and the largest relative fuel
 difference. The handover states are flown once and kept in ``out/guidance_reference/``.
 
-    ./dev bench guidance_reference                      # 4 + 2 x 25 states, both trees (B takes ~10 min)
-    ./dev bench guidance_reference --cases 3 --quick    # a smoke run: 4 + 2 x 3 states
+    ./dev bench guidance_reference                # 4 + 2 x 26 states, both trees (B ~10-15 min; the states,
+                                                  # flown once, ~6 min on 2 workers)
+    ./dev bench guidance_reference --quick        # a smoke run: the first 8 of those states
+
+The CPU time beside the wall time is the process's (Clarabel runs one thread): on a shared
+machine the wall time is that and the waiting for a core.
 """
 from __future__ import annotations
 

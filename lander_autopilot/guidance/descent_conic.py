@@ -168,6 +168,14 @@ class ConicProgram:
         self.cols = np.concatenate([np.concatenate(b.cols) for b, _ in blocks])
         self.offsets = np.cumsum([0] + [sum(len(r) for r in b.rows) for b, _ in blocks])
         self.m = self.n_zero + self.n_nonneg + so.n
+        # the CSC layout of A, once: each entry's slot (entries at the same place add up: a
+        # velocity's own term and its drag term in one dynamics row)
+        keys = self.cols * self.m + self.rows
+        unique, self._slot = np.unique(keys, return_inverse=True)
+        self._indices = (unique % self.m).astype(np.int64)
+        self._indptr = np.searchsorted(unique // self.m, np.arange(self.n + 1)).astype(np.int64)
+        u_cols = np.sort(self.iu.ravel())
+        self._P_indices, self._P_indptr = u_cols, np.searchsorted(u_cols, np.arange(self.n + 1))
         self.cones = ([clarabel.ZeroConeT(self.n_zero), clarabel.NonnegativeConeT(self.n_nonneg)]
                       + [clarabel.SecondOrderConeT(d) for d in cones])
         self.settings = {refine: self._settings(refine) for refine in (False, True)}
@@ -269,15 +277,13 @@ class ConicProgram:
         if p.end_speed > 0:
             b_so.append(np.array([p.end_speed, 0.0, 0.0, 0.0]))
         b = np.concatenate([b_zero, *b_nn, *b_so])
-        A = sp.csc_matrix((vals, (self.rows, self.cols)), shape=(self.m, self.n))
+        data = np.bincount(self._slot, weights=vals, minlength=self._indices.size)
+        A = sp.csc_matrix((data, self._indices, self._indptr), shape=(self.m, self.n))
         q = np.zeros(self.n)
         q[self.iz[N]] = -1.0  # maximise ln m_N
-        if self.drag:  # the strictly convex touch on the thrust's energy (descent_problem.STRICT_CONVEXITY)
-            diag = np.zeros(self.n)
-            diag[self.iu.ravel()] = 2 * STRICT_CONVEXITY * dt
-            P = sp.diags(diag, format="csc")
-        else:
-            P = sp.csc_matrix((self.n, self.n))
+        # the strictly convex touch on the thrust's energy with drag (descent_problem.STRICT_CONVEXITY)
+        weight = 2 * STRICT_CONVEXITY * dt if self.drag else 0.0
+        P = sp.csc_matrix((np.full(self._P_indices.size, weight), self._P_indices, self._P_indptr), shape=(self.n, self.n))
         return P, q, A, b
 
     def solve(self, dt: float, lin: Linearisation, refine: bool = True) -> Nodes | None:

@@ -17,8 +17,8 @@ Change of variables (their eq 17-18): ``sigma = Gamma / m``, ``u = T / m``, ``z 
 bounded by the second-order expansions of ``rho e^-z`` about ``z0(t) = ln(m0 - alpha rho_max t)``
 (their eq 19-20; lossless: at the optimum ``|u| = sigma``, their theorem 2).
 Discretised with the control held over each of ``N`` steps (exact for piecewise-constant ``u`` and
-``sigma``). Minimising fuel is maximising ``z(t_f)``. The final time is free: a golden-section
-search on ``t_f`` (the optimum fuel is unimodal in ``t_f``, their section IV.C).
+``sigma``). Minimising fuel is maximising ``z(t_f)``. The final time is free: a search on
+``t_f`` (the optimum fuel is unimodal in ``t_f``, their section IV.C; "The final time" below).
 
 Drag (optional, ``DescentProblem.drag``): the open parachute of a Mars descent pulls about the
 weight at its terminal speed, so a yardstick without it would be no yardstick. The drag acceleration
@@ -31,24 +31,60 @@ CDC 2016; relaxed fixed-point steps once the plain iteration stops contracting).
 At convergence the drag is exact at the nodes; the result is a local optimum of the problem with
 drag, which for this one-burn descent is the optimum (a coast under the chute then one burn).
 
-Solver: cvxpy with Clarabel (an interior-point conic solver, installed with the project): the
-problem is a second-order cone programme, which OSQP (a QP solver) cannot take.
+The final time. Under the open chute the fuel is least just past the *shortest* feasible final
+time: drag brakes for free only while the lander falls fast, so the optimum coasts at terminal
+speed as long as it can and stops with a late full-thrust burn; shorter final times are
+infeasible (no burn stops the fall in time), and the fuel falls steeply from the edge into its
+minimum (~10 kg/s over the first hundredths of a second on a de-orbit case) and rises slowly past
+it (~0.8 kg/s on the common handover, whose minimum is on the edge itself). A drag-free vertical
+fall to rest is the same bang-bang, on the edge. So the search is (1) a scan, short final times
+first, for the first feasible one on a grid; (2) bisection of the feasibility edge below it, each
+trial one convex solve, the first pass (thrust bound about the flat-out burn, drag about a linear
+fall to rest: feasibility needs no converged drag); (3) from the edge, steps doubling until the
+fuel rises, then golden section inside that bracket (unimodal), the drag converged at each trial
+but started from the converged trial nearest in final time (two passes where a cold start takes
+three to fifteen: the first pass's own fuel is biased by its crude linearisation, enough to move
+the minimum beside the steep edge). All on a coarse programme of ``SEARCH_STEPS`` nodes (a fifth
+of the solve time of 60), then (4) the golden section again on the caller's ``steps`` within
+``FINE_BRACKET`` of the coarse minimum. With drag that is ~45 convex solves, two thirds of them
+on the coarse programme, against ~150 solves through a modelling layer for a golden section of
+cold-started drag iterations at every trial final time; (5) where the drag settles at none of
+them, that plain search on the caller's programme is the fall-back.
+
+Solver: Clarabel (an interior-point conic solver, installed with the project) on the conic
+matrices laid out once (:mod:`.descent_conic`): the problem is a second-order cone programme,
+which OSQP (a QP solver) cannot take. Measured side by side on the de-orbit handovers
+(bench/guidance_reference.py): the modelling layer's canonicalisation and Clarabel's iterative
+refinement were each about half of a 60-node pass; QOCO and ECOS (smaller interior-point codes)
+solved the same matrices no faster than Clarabel on this 2-core machine (a few runs each, the
+machine shared); a generated solver (cvxpygen, QOCOGEN) was not measured.
+:class:`CvxpyProgram` keeps the cvxpy formulation as an independent cross-check (``backend``).
 """
 from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-#: [m/s] floor of the airspeed the drag's Jacobian divides by: finite at rest in the air, where the
-#: quadratic drag's derivative is zero anyway
-MIN_AIRSPEED = 1e-9
-#: [-] weight of the strictly convex touch on the thrust's energy (dt-weighted; ~1e-6 of the fuel):
-#: makes the optimum unique so the drag's fixed-point iteration converges
-STRICT_CONVEXITY = 1e-8
+from .descent_conic import ConicProgram, Linearisation, Nodes
+from .descent_problem import (
+    MIN_AIRSPEED,
+    STRICT_CONVEXITY,
+    DescentLimits,
+    DescentProblem,
+    DescentSolution,
+    DragModel,
+    GuidanceError,
+    drag_up,
+)
+
+#: the problem's names are re-exported: callers import them from here
+__all__ = ["MIN_AIRSPEED", "STRICT_CONVEXITY", "CvxpyProgram", "DescentLimits", "DescentProblem", "DescentSolution",
+           "DragModel", "FixedTimeProgram", "GuidanceError", "drag_up", "solve", "solve_fixed_time", "vertical_bang_bang"]
+
 #: [-] the first pass's trust region on the velocity, in units of ``1 + |v0|`` m/s: wide (the
 #: relaxation damps the passes), never binding on a plan that stops the fall
 TRUST_WIDTH = 10.0
@@ -69,153 +105,26 @@ MIN_RELAXATION = 0.05
 FINAL_TIME_TOLERANCE = 1e-5
 #: [s] shortest final time searched: the bracket's floor for a lander already at rest
 MIN_FINAL_TIME = 1e-2
+#: nodes of the coarse programme the final-time search runs on before the caller's ``steps``: the
+#: feasibility edge at 20 nodes lies within 3 ms of the edge at 60 on the common handover case
+#: (12.7203 s against 12.7182 s), a quarter of the 1e-3 relative tolerance asked of the reference
+SEARCH_STEPS = 20
+#: [-] the fine programme's bracket about the coarse minimum, each side, of the final time: twice
+#: the largest shift of the minimum seen between 20 and 60 nodes (4.4e-4, a de-orbit sweep case)
+FINE_BRACKET = 1e-3
+#: [-] the golden sections end at this share of the final time's tolerance: beside the feasibility
+#: edge the fuel is steep (falling by ~10 kg/s into its minimum, rising by ~0.8 kg/s past it
+#: under the chute), so an error in ``t_f`` there costs fuel to first order, not second
+EDGE_SHARE = 0.25
 #: [-] margin on the bracket's upper end, the burn the fuel allows at the larger of the least thrust
 #: and half the weight (their eq 46): the golden-section search needs a bracket that holds the optimum
 BRACKET_MARGIN = 1.5
 
 
-class GuidanceError(ValueError):
-    """A guidance problem with bad inputs, or one with no feasible solution; the message says which."""
-
-
-@dataclass(frozen=True)
-class DescentLimits:
-    """The vehicle seen as a point mass in the powered phase (SI units).
-
-    rho_max, rho_min : total thrust magnitude bounds [N] (``rho_min`` 0 when the throttles can be off).
-    alpha : fuel mass per impulse [kg/(N s)] = 1 / exhaust speed.
-    dry_mass : mass below which there is no fuel [kg].
-    max_tilt : largest angle between thrust and the local vertical [rad].
-    glide_slope : smallest elevation of the vehicle seen from the target [rad]; 0 for none.
-    """
-
-    rho_max: float
-    alpha: float
-    dry_mass: float
-    rho_min: float = 0.0
-    max_tilt: float = math.pi / 2
-    glide_slope: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not (self.rho_max > 0 and math.isfinite(self.rho_max)):
-            raise GuidanceError(f"rho_max must be a positive thrust in N, got {self.rho_max}")
-        if not (0 <= self.rho_min < self.rho_max):
-            raise GuidanceError(f"rho_min must be in [0, rho_max), got {self.rho_min}")
-        if not (self.alpha > 0 and self.dry_mass > 0):
-            raise GuidanceError(f"alpha and dry_mass must be positive, got {self.alpha}, {self.dry_mass}")
-        if not (0 < self.max_tilt <= math.pi / 2):
-            raise GuidanceError(f"max_tilt must be in (0, pi/2] rad, got {self.max_tilt}")
-        if not (0 <= self.glide_slope < math.pi / 2):
-            raise GuidanceError(f"glide_slope must be in [0, pi/2) rad, got {self.glide_slope}")
-
-
-@dataclass(frozen=True)
-class DragModel:
-    """Aerodynamic drag of the point mass: ``F = -k rho(h) |v - w| (v - w)`` (SI units).
-
-    k : ``sum 1/2 Cd A`` over the bodies that pull (sphere, open chute) [m^2].
-    surface_density : [kg/m^3]; scale_height : [m] (exponential atmosphere, altitude = local z).
-    wind_L : steady wind ``w`` in the local frame [m/s] (none by default).
-    """
-
-    k: float
-    surface_density: float
-    scale_height: float
-    wind_L: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        if not (self.k >= 0 and self.surface_density >= 0 and self.scale_height > 0):
-            raise GuidanceError(f"drag: need k >= 0, surface_density >= 0, scale_height > 0; got {self}")
-
-    def acceleration(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: np.ndarray) -> np.ndarray:
-        """``a_D`` at each row of ``(position, velocity, mass)`` [m/s^2]."""
-        rho = self.surface_density * np.exp(-np.asarray(position_L)[:, 2] / self.scale_height)
-        v = np.asarray(velocity_L) - np.asarray(self.wind_L)  # airspeed
-        return -(self.k * rho / mass * np.linalg.norm(v, axis=1))[:, None] * v
-
-    def jacobian(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: np.ndarray) -> np.ndarray:
-        """``d a_D / d v`` at each row, shape (n, 3, 3) [1/s]."""
-        rho = self.surface_density * np.exp(-np.asarray(position_L)[:, 2] / self.scale_height)
-        v = np.asarray(velocity_L) - np.asarray(self.wind_L)
-        s = np.maximum(np.linalg.norm(v, axis=1), MIN_AIRSPEED)
-        return -(self.k * rho / mass)[:, None, None] * (s[:, None, None] * np.eye(3)
-                                                       + v[:, :, None] * v[:, None, :] / s[:, None, None])
-
-
-def drag_up(drag: DragModel | None, position_L: np.ndarray, velocity_L: np.ndarray, mass: float) -> float:
-    """The drag acceleration along up [m/s^2, local ENU] at one state; 0 without a drag model."""
-    if drag is None:
-        return 0.0
-    return float(drag.acceleration(np.asarray(position_L, float)[None, :], np.asarray(velocity_L, float)[None, :],
-                                   np.array([mass]))[0, 2])
-
-
-@dataclass(frozen=True)
-class DescentProblem:
-    """From ``(position_L, velocity_L, mass)`` to rest at ``target_L`` (m, m/s, kg).
-
-    Local frame: origin on the surface below the target, z up (altitude), x and y horizontal.
-    With ``free_horizontal`` only the target's altitude binds: the descent ends at rest at that
-    altitude wherever it is cheapest (a hover, not a landing spot); the glide slope then has no apex
-    and is not applied. ``end_band`` [m] and ``end_speed`` [m/s] relax the end to a tolerance: within
-    ``end_band`` of the target's altitude and under ``end_speed`` (both convex; 0: exactly there, at
-    rest), the end of a flight judged by a hover band (docs/deorbit.md, "Measured results").
-    """
-
-    position_L: np.ndarray
-    velocity_L: np.ndarray
-    mass: float
-    gravity: float
-    limits: DescentLimits
-    target_L: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    free_horizontal: bool = False
-    drag: DragModel | None = None
-    end_band: float = 0.0
-    end_speed: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("position_L", "velocity_L", "target_L"):
-            a = np.asarray(getattr(self, name), dtype=float)
-            if a.shape != (3,) or not np.all(np.isfinite(a)):
-                raise GuidanceError(f"{name} must be 3 finite numbers, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, a)
-        if not (self.mass > self.limits.dry_mass):
-            raise GuidanceError(f"mass {self.mass} kg must exceed the dry mass {self.limits.dry_mass} kg")
-        if not (self.gravity > 0):
-            raise GuidanceError(f"gravity must be positive (m/s^2), got {self.gravity}")
-        for name in ("end_band", "end_speed"):
-            if not (getattr(self, name) >= 0):
-                raise GuidanceError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-
-
-@dataclass(frozen=True)
-class DescentSolution:
-    """A discretised optimal descent: ``N + 1`` nodes at ``t``; ``thrust_L`` at the nodes (linear between)."""
-
-    t: np.ndarray  # (N+1,) s
-    position_L: np.ndarray  # (N+1, 3) m
-    velocity_L: np.ndarray  # (N+1, 3) m/s
-    mass: np.ndarray  # (N+1,) kg
-    thrust_L: np.ndarray  # (N+1, 3) N
-    fuel: float  # kg
-    final_time: float  # s
-    solve_count: int  # convex solves the final-time search took
-
-    @property
-    def thrust_magnitude(self) -> np.ndarray:
-        return np.linalg.norm(self.thrust_L, axis=1)
-
-
-class _FixedTimeProgram:
-    """The convex programme for one problem and step count, built once (cvxpy parameters, DPP).
-
-    Parameters that change between solves: the step (final time), and the expansion point of the
-    thrust bounds. The upper bound ``rho_max e^-z`` is convex in ``z``, so its tangent at ``z_ref``
-    lies below it: every solution is feasible for the true bound, and re-solving with ``z_ref`` at
-    the last solution's log-mass (successive convexification, :meth:`solve`) makes it tight where
-    it matters. Acikmese and Ploen expand about the flat-out burn ``z0(t)`` once (their eq 19-20);
-    that is conservative by ``(z - z0)^2 / 2`` after a coast, a few per cent of thrust.
-    """
+class CvxpyProgram:
+    """The linearised pass of :class:`FixedTimeProgram` written in cvxpy (parameters, DPP) and solved
+    by Clarabel through it: the same programme as :class:`.descent_conic.ConicProgram` from an
+    independent formulation, the cross-check the tests hold the flown back-end to."""
 
     def __init__(self, problem: DescentProblem, steps: int) -> None:
         import cvxpy as cp
@@ -278,9 +187,6 @@ class _FixedTimeProgram:
             cons.append(cp.norm(rel[:, :2], axis=1) * math.tan(lim.glide_slope) <= rel[:, 2])
         objective = z[N]
         if problem.drag is not None:
-            # A strictly convex touch (1e-8 of the acceleration's energy, dt-weighted: ~1e-6 of the
-            # fuel here) makes the optimum unique, so the drag's fixed-point iteration converges
-            # instead of wandering over a flat face of optima (a coast's timing, a hover's place).
             objective = objective - STRICT_CONVEXITY * self.dt * cp.sum_squares(u)
         self.program = cp.Problem(cp.Maximize(objective), cons)
 
@@ -294,73 +200,156 @@ class _FixedTimeProgram:
         cons = [z] if problem.free_horizontal else [z, r_end[:2] == problem.target_L[:2]]
         return cons + [v_end == 0 if problem.end_speed == 0 else cp.norm(v_end) <= problem.end_speed]
 
-    def solve(self, final_time: float, passes: int | None = None) -> DescentSolution | None:
-        """The optimum for ``final_time`` s, or None when infeasible. ``passes`` bounds the
-        re-linearisations (default 4 without drag: the thrust bound's expansion converges in 2-3;
-        30 with drag, whose iteration settles in 3-15 passes where it settles at all (measured on the
-        de-orbit handovers; a final time that has not settled by then counts as infeasible))."""
+    def solve(self, dt: float, lin: Linearisation, refine: bool = True) -> Nodes | None:
+        """The pass's optimum (:meth:`.descent_conic.ConicProgram.solve`'s contract; ``refine`` is
+        cvxpy's to choose)."""
         import cvxpy as cp
 
-        if not (final_time > 0):
-            raise GuidanceError(f"final_time must be positive, got {final_time}")
-        lim, N, m0 = self.problem.limits, self.N, self.problem.mass
-        drag = self.problem.drag
-        passes = passes if passes is not None else (4 if drag is None else 30)
-        dt = final_time / N
+        lim = self.problem.limits
         self.dt.value, self.half_dt2.value, self.alpha_dt.value = dt, dt * dt / 2, lim.alpha * dt
         self.sixth_dt2.value = dt * dt / 6
+        self.mu_max.value, self.mu_max_offset.value = lin.mu_max, lin.mu_max_offset
+        if lim.rho_min > 0:
+            self.z0.value, self.mu_min.value = lin.z0, lin.mu_min
+        if self.problem.drag is not None:
+            assert lin.drag_J is not None
+            self.drag_c0.value = lin.drag_c0
+            for i in range(3):
+                for j in range(3):
+                    self.drag_J[i][j].value = lin.drag_J[:, i, j]
+            self.v_ref.value, self.trust.value = lin.v_ref, lin.trust
+        try:
+            with warnings.catch_warnings():
+                # "Solution may be inaccurate": accepted below as optimal_inaccurate, which for
+                # Clarabel means its reduced tolerances (1e-4 relative) were met.
+                warnings.simplefilter("ignore", UserWarning)
+                self.program.solve(solver=cp.CLARABEL)
+        except cp.error.SolverError:
+            return None
+        if self.program.status not in ("optimal", "optimal_inaccurate") or self.z.value is None:
+            return None
+        return Nodes(r=np.array(self.r.value), v=np.array(self.v.value), z=np.array(self.z.value),
+                     u=np.array(self.u.value))
+
+
+class FixedTimeProgram:
+    """The minimum-fuel descent at a given final time: successive convexification of the thrust
+    bound and the drag (module docstring) over passes of one convex programme, built once.
+
+    The upper bound ``rho_max e^-z`` is convex in ``z``, so its tangent at ``z_ref`` lies below it:
+    every solution is feasible for the true bound, and re-solving with ``z_ref`` at the last
+    solution's log-mass makes it tight where it matters. Acikmese and Ploen expand about the
+    flat-out burn ``z0(t)`` once (their eq 19-20); that is conservative by ``(z - z0)^2 / 2`` after
+    a coast, a few per cent of thrust. ``backend``: ``"conic"`` (:class:`.descent_conic.ConicProgram`,
+    flown) or ``"cvxpy"`` (:class:`CvxpyProgram`, the cross-check). ``solves`` counts the convex
+    solves (passes) made so far.
+    """
+
+    def __init__(self, problem: DescentProblem, steps: int, backend: str = "conic") -> None:
+        if backend not in ("conic", "cvxpy"):
+            raise GuidanceError(f"backend must be 'conic' or 'cvxpy', got {backend!r}")
+        self.problem, self.N = problem, int(steps)
+        self.program: ConicProgram | CvxpyProgram = (ConicProgram if backend == "conic" else CvxpyProgram)(problem, steps)
+        self.solves = 0
+        self._firsts: dict[float, tuple[Nodes | None, np.ndarray | None]] = {}
+
+    def _pass(self, dt: float, z_ref: np.ndarray, z_flat: np.ndarray,
+              drag_ref: tuple[np.ndarray, np.ndarray, float] | None,
+              refine: bool = True) -> tuple[Nodes | None, np.ndarray | None]:
+        """One convex solve about ``z_ref`` (and the drag about ``(r_ref, v_ref, trust)``); returns the
+        pass's nodes and the drag's Jacobian ``J`` it was linearised with (None without drag).
+        ``refine`` as :meth:`.descent_conic.ConicProgram.solve`'s: off for a first pass, which
+        decides feasibility and the next linearisation only (a solution handed out always comes
+        from a later pass)."""
+        lim, drag = self.problem.limits, self.problem.drag
+        mu = lim.rho_max * np.exp(-z_ref)
+        kw: dict[str, Any] = {}
+        J = None
+        if lim.rho_min > 0:
+            kw.update(z0=z_flat, mu_min=lim.rho_min * np.exp(-z_flat))
+        if drag is not None and drag_ref is not None:
+            r_ref, v_ref, trust = drag_ref
+            m_ref = np.exp(z_ref)
+            J = drag.jacobian(r_ref, v_ref, m_ref)
+            c0 = drag.acceleration(r_ref, v_ref, m_ref) - np.einsum("kij,kj->ki", J, v_ref)
+            kw.update(drag_c0=c0, drag_J=J, v_ref=v_ref, trust=trust)
+        self.solves += 1
+        return self.program.solve(dt, Linearisation(mu_max=mu, mu_max_offset=mu * (1 + z_ref), **kw), refine), J
+
+    def first(self, final_time: float) -> Nodes | None:
+        """The first pass at ``final_time`` s (the flat-out burn's thrust bound, the drag about the
+        velocity falling linearly to rest), None when infeasible: one convex solve, kept for
+        :meth:`solve` at the same final time."""
+        if not (final_time > 0):
+            raise GuidanceError(f"final_time must be positive, got {final_time}")
+        if final_time not in self._firsts:
+            self._firsts[final_time] = self._pass(*self._start(final_time), refine=False)
+        return self._firsts[final_time][0]
+
+    def feasible(self, final_time: float) -> bool:
+        """Whether the first pass at ``final_time`` s has a solution (:meth:`first`)."""
+        return self.first(final_time) is not None
+
+    def _start(self, final_time: float) -> tuple[float, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, float] | None]:
+        lim, N, m0 = self.problem.limits, self.N, self.problem.mass
+        dt = final_time / N
         t = np.arange(N + 1) * dt
         # First expansion point: the flat-out burn, clipped at the dry mass past burn-out.
         z_flat = np.log(np.maximum(m0 - lim.alpha * lim.rho_max * t, lim.dry_mass))
-        if lim.rho_min > 0:
-            self.z0.value = z_flat
-            self.mu_min.value = lim.rho_min * np.exp(-z_flat)
-        z_ref = z_flat
-        if drag is not None:
-            # First drag reference: the velocity falling linearly to rest, the height following it.
-            p0, v0 = self.problem.position_L, self.problem.velocity_L
-            v_ref = v0[None, :] * (1 - t / final_time)[:, None]
-            r_ref = p0[None, :] + v0[None, :] * (t - t * t / (2 * final_time))[:, None]
-            trust = TRUST_WIDTH * (1.0 + float(np.linalg.norm(v0)))  # [m/s]: wide; the relaxation below damps
-            relax, prev_step = 1.0, None
+        if self.problem.drag is None:
+            return dt, z_flat, z_flat, None
+        # First drag reference: the velocity falling linearly to rest, the height following it.
+        p0, v0 = self.problem.position_L, self.problem.velocity_L
+        v_ref = v0[None, :] * (1 - t / final_time)[:, None]
+        r_ref = p0[None, :] + v0[None, :] * (t - t * t / (2 * final_time))[:, None]
+        trust = TRUST_WIDTH * (1.0 + float(np.linalg.norm(v0)))  # [m/s]: wide; the relaxation below damps
+        return dt, z_flat, z_flat, (r_ref, v_ref, trust)
+
+    def solve(self, final_time: float, passes: int | None = None,
+              warm: DescentSolution | None = None) -> DescentSolution | None:
+        """The optimum for ``final_time`` s, or None when infeasible. ``passes`` bounds the
+        re-linearisations (default 4 without drag: the thrust bound's expansion converges in 2-3;
+        30 with drag, whose iteration settles in 3-15 passes where it settles at all (measured on the
+        de-orbit handovers; a final time that has not settled by then counts as infeasible)).
+        ``warm``: a solution of this programme at a neighbouring final time, whose nodes (the same
+        fractions of the descent) are the first linearisation instead of the flat-out burn and the
+        linear fall: near the optimum it is all but converged here, and the passes take two."""
+        if not (final_time > 0):
+            raise GuidanceError(f"final_time must be positive, got {final_time}")
+        m0, drag = self.problem.mass, self.problem.drag
+        passes = passes if passes is not None else (4 if drag is None else 30)
+        dt, z_ref, z_flat, drag_ref = self._start(final_time)
+        if warm is not None and len(warm.t) == self.N + 1:
+            z_ref = np.log(warm.mass)
+            if drag_ref is not None:
+                drag_ref = (warm.position_L, warm.velocity_L, drag_ref[2])
+        relax, prev_step = 1.0, None
         best: float | None = None
         converged = drag is None
-        for _ in range(passes):
-            self.mu_max.value = lim.rho_max * np.exp(-z_ref)
-            self.mu_max_offset.value = self.mu_max.value * (1 + z_ref)
-            if drag is not None:
-                m_ref = np.exp(z_ref)
-                J = drag.jacobian(r_ref, v_ref, m_ref)
-                self.drag_c0.value = drag.acceleration(r_ref, v_ref, m_ref) - np.einsum("kij,kj->ki", J, v_ref)
-                for i in range(3):
-                    for j in range(3):
-                        self.drag_J[i][j].value = J[:, i, j]
-                self.v_ref.value, self.trust.value = v_ref, trust
-            try:
-                with warnings.catch_warnings():
-                    # "Solution may be inaccurate": accepted below as optimal_inaccurate, which for
-                    # Clarabel means its reduced tolerances (1e-4 relative) were met.
-                    warnings.simplefilter("ignore", UserWarning)
-                    self.program.solve(solver=cp.CLARABEL)
-            except cp.error.SolverError:
+        nodes: Nodes | None = None
+        for i in range(passes):
+            if i == 0 and warm is None:
+                self.first(final_time)
+                nodes, J = self._firsts[final_time]
+            else:
+                nodes, J = self._pass(dt, z_ref, z_flat, drag_ref)
+            if nodes is None:
                 return None
-            if self.program.status not in ("optimal", "optimal_inaccurate") or self.z.value is None:
-                return None
-            zN = float(self.z.value[-1])
-            if drag is None:
+            zN = float(nodes.z[-1])
+            if drag is None or drag_ref is None or J is None:
                 if best is not None and abs(zN - best) < LOG_MASS_TOLERANCE:
                     break
-                best, z_ref = zN, np.array(self.z.value)
+                best, z_ref = zN, nodes.z
                 continue
-            v_sol = np.array(self.v.value)
-            step = float(np.max(np.abs(v_sol - v_ref)))
+            r_ref, v_ref, trust = drag_ref
+            step = float(np.max(np.abs(nodes.v - v_ref)))
             # Converged when the drag the programme flew (linearised) is the true drag of its own
-            # trajectory to 1e-2 m/s^2 (0.3 % of g: ~0.2 m/s over a 20-s burn, ~0.3 % of its fuel) and the fuel between passes agrees to 1e-3 of the
-            # fuel burnt: the passes scatter by ~1e-4 (the optimum is flat along some directions, a
-            # coast node's timing, and the solver returns any point of that face), and a yardstick
-            # for a 3 % criterion needs 0.1 %.
-            lin = self.drag_c0.value + np.einsum("kij,kj->ki", J, v_sol)
-            residual = float(np.max(np.abs(drag.acceleration(np.array(self.r.value), v_sol, np.exp(self.z.value)) - lin)))
+            # trajectory to DRAG_RESIDUAL and the fuel between passes agrees to FUEL_AGREEMENT of
+            # the fuel burnt: the passes scatter by ~1e-4 (the optimum is flat along some
+            # directions, a coast node's timing, and the solver returns any point of that face).
+            c0 = drag.acceleration(r_ref, v_ref, np.exp(z_ref)) - np.einsum("kij,kj->ki", J, v_ref)
+            lin = c0 + np.einsum("kij,kj->ki", J, nodes.v)
+            residual = float(np.max(np.abs(drag.acceleration(nodes.r, nodes.v, np.exp(nodes.z)) - lin)))
             if residual < DRAG_RESIDUAL and best is not None and abs(math.exp(zN) - math.exp(best)) < FUEL_AGREEMENT * (m0 - math.exp(zN)):
                 converged = True
                 break
@@ -370,76 +359,144 @@ class _FixedTimeProgram:
             if prev_step is not None and step > CONTRACTION * prev_step:
                 relax = max(0.5 * relax, MIN_RELAXATION)
             prev_step = step
-            v_ref = v_ref + relax * (v_sol - v_ref)
-            r_ref = r_ref + relax * (np.array(self.r.value) - r_ref)
-            z_ref = z_ref + relax * (np.array(self.z.value) - z_ref)
+            drag_ref = (r_ref + relax * (nodes.r - r_ref), v_ref + relax * (nodes.v - v_ref), trust)
+            z_ref = z_ref + relax * (nodes.z - z_ref)
             best = zN
-        if not converged:
+        if not converged or nodes is None:
             return None  # the linearised drag never settled: no trustworthy optimum at this final time
-        mass = np.exp(self.z.value)
-        thrust = self.u.value * mass[:, None]
-        return DescentSolution(t=t, position_L=np.array(self.r.value), velocity_L=np.array(self.v.value),
-                               mass=mass, thrust_L=thrust, fuel=float(m0 - mass[-1]),
-                               final_time=float(final_time), solve_count=1)
+        mass = np.exp(nodes.z)
+        t = np.arange(self.N + 1) * dt
+        return DescentSolution(t=t, position_L=nodes.r, velocity_L=nodes.v, mass=mass, thrust_L=nodes.u * mass[:, None],
+                               fuel=float(m0 - mass[-1]), final_time=float(final_time), solve_count=1)
 
 
-def solve_fixed_time(problem: DescentProblem, final_time: float, steps: int = 60) -> DescentSolution | None:
+def solve_fixed_time(problem: DescentProblem, final_time: float, steps: int = 60,
+                     backend: str = "conic") -> DescentSolution | None:
     """The minimum-fuel descent lasting exactly ``final_time`` s, or None when none is feasible."""
-    return _FixedTimeProgram(problem, steps).solve(final_time)
+    return FixedTimeProgram(problem, steps, backend).solve(final_time)
+
+
+def _bracket(problem: DescentProblem) -> tuple[float, float]:
+    """``[t_lo, t_hi]``: half the time to cancel the speed at full thrust, and the longest burn the
+    fuel allows at the larger of the least thrust and half the weight (their eq 45-46), with margin."""
+    lim, m0 = problem.limits, problem.mass
+    speed = float(np.linalg.norm(problem.velocity_L))
+    t_lo = max(MIN_FINAL_TIME, speed * m0 / lim.rho_max) * 0.5
+    t_hi = (m0 - lim.dry_mass) / (lim.alpha * max(lim.rho_min, m0 * problem.gravity * 0.5)) * BRACKET_MARGIN
+    return t_lo, max(t_hi, 2 * t_lo)
+
+
+class _Search:
+    """Fuel at final times on one programme, cached: ``fuel`` with the drag converged, ``first``
+    from the first pass alone (one convex solve); +inf where infeasible or unsettled."""
+
+    def __init__(self, program: FixedTimeProgram) -> None:
+        self.program = program
+        self.cache: dict[float, DescentSolution | None] = {}
+
+    def fuel(self, tf: float, warm: bool = False) -> float:
+        """The converged fuel at ``tf``; ``warm``: from the converged solution nearest in final time."""
+        if tf not in self.cache:
+            near = [s for s in self.cache.values() if s is not None]
+            start = min(near, key=lambda s: abs(s.final_time - tf)) if warm and near else None
+            self.cache[tf] = self.program.solve(tf, warm=start)
+        sol = self.cache[tf]
+        return math.inf if sol is None else sol.fuel
+
+    def first(self, tf: float) -> float:
+        nodes = self.program.first(tf)
+        return math.inf if nodes is None else self.program.problem.mass - math.exp(float(nodes.z[-1]))
+
+    def best(self) -> DescentSolution | None:
+        solved = [s for s in self.cache.values() if s is not None]
+        return min(solved, key=lambda s: s.fuel) if solved else None
+
+    @staticmethod
+    def golden(f: Callable[[float], float], a: float, b: float, tol: float) -> float:
+        """Golden-section search of the (unimodal) ``f`` on ``[a, b]`` down to a bracket of ``tol``;
+        returns the best point tried."""
+        invphi = (math.sqrt(5) - 1) / 2
+        c, d = b - invphi * (b - a), a + invphi * (b - a)
+        tried = {c: f(c), d: f(d)}
+        while b - a > tol:
+            if tried[c] <= tried[d]:
+                b, d = d, c
+                c = b - invphi * (b - a)
+                tried[c] = f(c)
+            else:
+                a, c = c, d
+                d = a + invphi * (b - a)
+                tried[d] = f(d)
+        return min(tried, key=lambda t: tried[t])
+
+    def edge(self, a: float, b: float, tol: float) -> float:
+        """The shortest feasible final time in ``[a, b]`` (``a`` infeasible, ``b`` feasible), by
+        bisection on the first pass's feasibility to ``tol`` s; returns the feasible end."""
+        while b - a > tol:
+            c = 0.5 * (a + b)
+            a, b = (a, c) if self.program.feasible(c) else (c, b)
+        return b
+
+    def rise(self, t0: float, step: float, t_max: float) -> tuple[float, float]:
+        """From ``t0`` (feasible) steps doubling from ``step`` until the converged fuel (each trial
+        warm from the one before) rises: the bracket ``[a, b]`` of its minimum (unimodal), ``b`` at
+        most ``t_max``."""
+        ts, fs = [t0], [self.fuel(t0)]
+        while ts[-1] < t_max:
+            ts.append(min(t0 + step * 2 ** (len(ts) - 1), t_max))
+            fs.append(self.fuel(ts[-1], warm=True))
+            if fs[-1] > fs[-2]:
+                break
+        return ts[max(len(ts) - 3, 0)], ts[-1]
 
 
 def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float] | None = None,
-          t_tol: float = FINAL_TIME_TOLERANCE) -> DescentSolution:
-    """The minimum-fuel descent with free final time (golden-section search on ``t_f``).
+          t_tol: float = FINAL_TIME_TOLERANCE, backend: str = "conic") -> DescentSolution:
+    """The minimum-fuel descent with free final time (module docstring, "The final time").
 
-    ``t_bounds`` defaults to ``[t_lo, t_hi]`` with ``t_lo`` the time to cancel the speed at full
-    thrust and ``t_hi`` the longest burn the fuel allows while hovering (their eq 45-46 bracket).
-    Raises :class:`GuidanceError` when no final time in the bracket is feasible.
+    ``t_bounds`` defaults to :func:`_bracket`'s (their eq 45-46). ``t_tol`` is relative to the
+    final time (absolute under 1 s). ``backend`` as :class:`FixedTimeProgram`'s. ``solve_count`` of
+    the result: the convex solves of the whole search. Raises :class:`GuidanceError` when no final
+    time in the bracket is feasible.
     """
-    lim = problem.limits
-    m0 = problem.mass
-    if t_bounds is None:
-        speed = float(np.linalg.norm(problem.velocity_L))
-        t_lo = max(MIN_FINAL_TIME, speed * m0 / lim.rho_max) * 0.5
-        t_hi = (m0 - lim.dry_mass) / (lim.alpha * max(lim.rho_min, m0 * problem.gravity * 0.5)) * BRACKET_MARGIN
-        t_bounds = (t_lo, max(t_hi, 2 * t_lo))
-    lo, hi = map(float, t_bounds)
-    count = 0
-    cache: dict[float, DescentSolution | None] = {}
-    program = _FixedTimeProgram(problem, steps)
+    lo, hi = map(float, t_bounds if t_bounds is not None else _bracket(problem))
+    fine_program = FixedTimeProgram(problem, steps, backend)
+    coarse_program = fine_program if steps <= SEARCH_STEPS else FixedTimeProgram(problem, SEARCH_STEPS, backend)
+    coarse, fine = _Search(coarse_program), _Search(fine_program)
 
-    def fuel(tf: float) -> float:
-        nonlocal count
-        if tf not in cache:
-            count += 1
-            cache[tf] = program.solve(tf)
-        sol = cache[tf]
-        return math.inf if sol is None else sol.fuel
+    def tol(t: float) -> float:
+        return t_tol * max(1.0, t)
 
-    # Infeasible final times are +inf; coarse scan first so the golden section starts inside the
-    # feasible, unimodal interval.
-    # With drag the feasible final times are a narrow band near the short end (under the chute the
-    # lander cannot fall faster than its terminal speed, and a long descent hovers at a loss), and a
-    # final time whose drag iteration does not settle counts as infeasible: a geometric grid.
-    grid = np.geomspace(lo, hi, 13) if problem.drag is not None else np.linspace(lo, hi, 9)
-    fuels = [fuel(float(tf)) for tf in grid]
-    k = int(np.argmin(fuels))
-    if not math.isfinite(fuels[k]):
+    # (1) The coarse scan, short final times first, for the first feasible one: a geometric grid
+    # with drag (its feasible final times are a band near the short end), linear without.
+    grid = [float(t) for t in (np.geomspace(lo, hi, 13) if problem.drag is not None else np.linspace(lo, hi, 9))]
+    k = next((i for i, t in enumerate(grid) if coarse_program.feasible(t)), None)
+    if k is None:
         raise GuidanceError(f"no feasible descent with final time in [{lo:.2f}, {hi:.2f}] s "
                             f"(too little fuel or thrust for this handover state)")
-    a, b = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, len(grid) - 1)])
-    invphi = (math.sqrt(5) - 1) / 2
-    c, d = b - invphi * (b - a), a + invphi * (b - a)
-    while b - a > t_tol * max(1.0, a):
-        if fuel(c) <= fuel(d):
-            b, d = d, c
-            c = b - invphi * (b - a)
-        else:
-            a, c = c, d
-            d = a + invphi * (b - a)
-    solved = {tf: s for tf, s in cache.items() if s is not None}
-    best = min(solved, key=lambda tf: solved[tf].fuel)
-    sol = solved[best]
+    # (2) the feasibility edge below it, (3) the first-pass fuel's minimum from the edge on: a
+    # bracket by doubling steps, then golden section, all on the coarse programme
+    t_edge = coarse.edge(grid[k - 1], grid[k], tol(grid[k])) if k > 0 else grid[0]
+    a, b = coarse.rise(t_edge, tol(t_edge), hi)
+    t_coarse = _Search.golden(lambda t: coarse.fuel(t, warm=True), a, b, tol(a) * EDGE_SHARE)
+    # (4) golden section of the converged fuel on the fine programme about the coarse minimum,
+    # each trial warm from the nearest one before
+    width = FINE_BRACKET * max(1.0, t_coarse)
+    fine.fuel(t_coarse)
+    _Search.golden(lambda t: fine.fuel(t, warm=True), max(lo, t_coarse - width), min(hi, t_coarse + width),
+                   tol(t_coarse) * EDGE_SHARE)
+    sol = fine.best()
+    if sol is None:
+        # (5) no settled optimum there: golden section of the converged fuel on the grid's
+        # bracket of its first rise (the slow, plain search)
+        fuels = [fine.fuel(t) for t in grid]
+        j = int(np.argmin(fuels))
+        if not math.isfinite(fuels[j]):
+            raise GuidanceError(f"no final time in [{lo:.2f}, {hi:.2f}] s settles the drag's iteration")
+        _Search.golden(fine.fuel, grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], tol(grid[j]))
+        sol = fine.best()
+    assert sol is not None
+    count = coarse_program.solves + (0 if fine is coarse else fine_program.solves)
     return DescentSolution(**{**sol.__dict__, "solve_count": count})
 
 

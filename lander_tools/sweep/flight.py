@@ -268,8 +268,20 @@ def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, boo
     ``balanced``: the thrust bound the flown thrusters give with no torque (``handover_problem``'s).
     ``end_band`` [m], ``end_speed`` [m/s]: the end anywhere within that band of the demand under that
     speed instead of at rest at it (``DescentProblem``'s)."""
-    from lander_autopilot.controllers.deorbit_mpc import handover_problem
     from lander_autopilot.guidance.fuel_optimal import GuidanceError, solve
+
+    problem = yardstick_problem(sim, handover, demand_altitude, balanced, end_band, end_speed)
+    try:
+        return float(solve(problem, steps=30, t_tol=1e-3).fuel)
+    except GuidanceError:
+        return math.nan
+
+
+def yardstick_problem(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, bool], demand_altitude: float,
+                      balanced: bool = False, end_band: float = 0.0, end_speed: float = 0.0) -> Any:
+    """The :class:`~lander_autopilot.guidance.fuel_optimal.DescentProblem` :func:`powered_optimum`
+    solves (same arguments): the flown vehicle, atmosphere and mean wind at the handover state."""
+    from lander_autopilot.controllers.deorbit_mpc import handover_problem
 
     r_W, v_W, fuel, chute = handover
     atmosphere = sim.dynamics.atmosphere
@@ -280,10 +292,7 @@ def powered_optimum(sim: Any, handover: tuple[np.ndarray, np.ndarray, float, boo
                                        balanced=balanced, **kwargs)
     if end_band or end_speed:
         problem = dataclasses.replace(problem, end_band=end_band, end_speed=end_speed)
-    try:
-        return float(solve(problem, steps=30, t_tol=1e-3).fuel)
-    except GuidanceError:
-        return math.nan
+    return problem
 
 
 def make_row(spec: SweepSpec, controller_index: int, index: int, case: Any, samples: Samples) -> dict[str, Any]:

@@ -5,6 +5,7 @@ throttles and wind, calls the services and reads state, /clock, events and diagn
 """
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from typing import Any
@@ -341,13 +342,15 @@ def test_a_users_step_flies_the_held_command_and_does_not_age_it(probe, scenes):
     dt = load_scene(str(scenes["vertical"])).dt
     probe.set_params(command_timeout=limit)
     _accepted_after(probe, lambda: probe.send_throttles([1.0, 1.0, 1.0, 1.0]))
-    t_cmd = float(probe.diagnostics[-1]["sim_time"])
     n_events = len(probe.events)
     res = probe.call("step", StepSimulation.Request(steps=steps))
     assert res.success, res.message
-    t_end = t_cmd + steps * dt
+    t_end = res.sim_time  # the step's start is `steps` dt before (the paused instant the command came at)
     probe.wait_for(lambda: state_ns(probe.states[-1]) == round(t_end * 1e9), 10.0, "the step's last state")
-    stepped = [s for s in list(probe.states) if t_cmd * 1e9 < state_ns(s) <= t_end * 1e9 + 1]
+    # The states of the step's ticks, after its start instant (half a step clear of float rounding).
+    after_start_ns = round((t_end - (steps - 0.5) * dt) * 1e9)
+    # The last states published (paused after the step): back from the end to the step's start.
+    stepped = list(itertools.takewhile(lambda m: state_ns(m) > after_start_ns, reversed(probe.states)))
     assert stepped and all(list(s.throttles) == [1.0] * 4 for s in stepped), [list(s.throttles) for s in stepped]
     stale = lambda: [e for e in probe.events[n_events:] if e.kind == FlightEvent.COMMAND_STALE]  # noqa: E731
     assert not stale()

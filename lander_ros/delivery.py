@@ -96,8 +96,13 @@ def run_node_process(prog: str, argv: list[str], make_node: Callable[[], Any],
     ``request_stop()`` (:func:`install_stop_handlers`), which ends its ``run(executor)``; then its
     last messages are flushed (``flush()``) before the context goes down. A ValueError or
     ParameterException out of the node (a bad configuration: unknown parameter, bad scene, ...)
-    is one line ``prog: message`` on stderr and status 2.
+    is one line ``prog: message`` on stderr and status 2. A crash in native code (a segmentation
+    fault in a compiled extension) prints the Python stack of every thread on stderr first
+    (:mod:`faulthandler`), so the launcher's log says where the node died.
     """
+    import faulthandler
+
+    faulthandler.enable()
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:

@@ -395,6 +395,10 @@ class SimNode(Node):
         self._pub_events.publish(ev)
         self._counts["/lander/events"] += 1
 
+    def report_now(self) -> None:
+        """A /diagnostics report now (the pause service: ``paused`` is news to the flight's watchers)."""
+        self._publish_diagnostics(time.monotonic())
+
     def _publish_diagnostics(self, now: float) -> None:
         self._next_diag_wall = now + 1.0 / self._param("diagnostics_rate")
         self.health.update_rtf(self.sim.t, now)

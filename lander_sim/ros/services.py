@@ -69,6 +69,9 @@ class SimControl(Protocol):
     def publish_core_events(self) -> None:
         """Publish the core's pending events."""
 
+    def report_now(self) -> None:
+        """Publish a /diagnostics report now (its ``paused`` value among them)."""
+
     def matched(self) -> dict[str, int]:
         """Subscriptions matched by each output, publishers matched by each input (``sub:TOPIC``)."""
 
@@ -123,12 +126,15 @@ class SimServices:
         return response
 
     def pause(self, request: Any, response: Any) -> Any:
-        # Nothing is published: the last state (at every tick boundary) already is the pause instant.
+        # No state is published: the last one (at every tick boundary) already is the pause instant.
+        # A diagnostics report goes out at once, so that whoever watches the state stream (the
+        # launcher, the autopilot) knows the flight is paused before it misses a state.
         # The answer says what it was (`lander record --whole-flight` resumes only a running flight).
         node = self.node
         was = "paused" if node.gate.pause().paused else "running"
         if was == "running":
             node.pacer.stop(node.sim.t + node.steps_per_tick * node.sim.dt)  # behind when it stopped: counted
+            node.report_now()
         response.success = True
         response.message = f"paused at t = {node.sim.t!r} s (was {was}){FLIGHT_SUFFIX}{node.flight}"
         return response

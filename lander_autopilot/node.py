@@ -74,6 +74,7 @@ from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
 from lander_ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_process
+from lander_ros.flight_span import sim_paused
 from lander_ros.params import check_overrides
 from lander_ros.strangers import InputGuard, with_message_info
 from lander_sim.scenes import load_scene
@@ -87,9 +88,6 @@ _FLIGHT_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 #: Demand altitude input: only the newest demand matters, a few queued are plenty.
 _DEMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 _EVENT_QOS = QoSProfile(depth=1000)  # as the simulator's events publisher: none is lost in a burst
-#: The simulator's status on /diagnostics (lander_sim.node): its ``paused`` value tells a paused
-#: flight from a lost state stream.
-_SIM_STATUS_PREFIX = "lander_sim:"
 #: [s] wall time the simulator's last "paused" report stays good: a few of its reports (1 Hz by
 #: default); past it the simulator has gone quiet, and a missing state is a loss again
 PAUSED_REPORT_TIMEOUT = 5.0
@@ -414,10 +412,9 @@ class AutopilotNode(Node):
     # --- health --------------------------------------------------------------------------------
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            if st.name.startswith(_SIM_STATUS_PREFIX):
-                self._sim_report_wall = time.monotonic()
-                self._sim_paused = any(kv.key == "paused" and kv.value == "True" for kv in st.values)
+        paused = sim_paused(msg)
+        if paused is not None:
+            self._sim_report_wall, self._sim_paused = time.monotonic(), paused
 
     def _watchdog(self) -> None:
         """Report a lost state stream (no command is sent without a state, so nothing unsafe goes out);

@@ -93,14 +93,19 @@ def _held_by_tests(domain: int) -> bool:
     return False
 
 
-def claim_free_domain(start: int | None = None) -> DomainLock:
-    """Hold a domain in DOMAIN_MIN..DOMAIN_MAX that no flight or test run on this machine holds,
-    walking up from one derived from ``start`` (default: this pid); ValueError when all are taken."""
+def _make_lock_dir() -> None:
+    """LOCK_DIR, shared by every user's flights (sticky, writable by all)."""
     try:
         LOCK_DIR.mkdir(mode=0o1777, exist_ok=True)
         LOCK_DIR.chmod(0o1777)  # any user's flights share it (mkdir's mode is cut by the umask)
     except OSError:
         pass  # another user's folder: its mode is theirs to set, its files are shared all the same
+
+
+def claim_free_domain(start: int | None = None) -> DomainLock:
+    """Hold a domain in DOMAIN_MIN..DOMAIN_MAX that no flight or test run on this machine holds,
+    walking up from one derived from ``start`` (default: this pid); ValueError when all are taken."""
+    _make_lock_dir()
     span = DOMAIN_MAX - DOMAIN_MIN + 1
     first = (os.getpid() if start is None else start) % span
     for k in range(span):
@@ -127,11 +132,7 @@ def hold_domain(domain: int) -> DomainLock:
     ``lander fly`` on this machine holds it. The lock sees flights on this machine at once, before
     any discovery; flights elsewhere on the network (or not started by ``lander fly``) are found in
     the ROS graph at start-up (:func:`lander_tools.fly.flight.strangers_in_graph`)."""
-    try:
-        LOCK_DIR.mkdir(mode=0o1777, exist_ok=True)
-        LOCK_DIR.chmod(0o1777)
-    except OSError:
-        pass
+    _make_lock_dir()
     handle = _try_lock(LOCK_DIR / f"{domain}.lock", exclusive=True)
     if handle is None and (LOCK_DIR / f"{domain}.lock").exists():
         raise DomainTaken(domain, "another lander fly on this machine holds it")

@@ -18,7 +18,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import Reset, SwitchController
-from lander_ros.flight_span import FlightEnd
+from lander_ros.flight_span import FlightEnd, sim_paused
 from lander_ros.stamps import stamp_to_seconds
 from lander_ros.strangers import STRANGER_KIND
 from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
@@ -174,10 +174,9 @@ class Supervisor:
     def _on_diagnostics(self, msg: Any) -> None:
         if any(st.name.startswith(f"{AUTOPILOT_NODE}:") for st in msg.status):
             self._count("/diagnostics")  # the autopilot's only: the sim's come from FLIGHT_ENDED
-        for st in msg.status:
-            if st.name.startswith(f"{SIM_NODE}:"):
-                self.sim_word_wall = time.monotonic()
-                self.sim_paused = any(kv.key == "paused" and kv.value == "True" for kv in st.values)
+        paused = sim_paused(msg)
+        if paused is not None:
+            self.sim_word_wall, self.sim_paused = time.monotonic(), paused
 
     def _on_throttle(self, msg: Any) -> None:
         self._count("/lander/throttle")

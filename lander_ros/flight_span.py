@@ -147,6 +147,14 @@ def sim_report(msg: Any) -> dict[str, str] | None:
     return None
 
 
+def sim_paused(msg: Any) -> bool | None:
+    """What a ``diagnostic_msgs/DiagnosticArray`` says of the simulator: whether it is paused (its
+    ``paused`` value, :func:`sim_report`), None when the array holds no status of the simulator.
+    Who watches a flight's state stream reads it to tell a paused flight from a lost stream."""
+    report = sim_report(msg)
+    return None if report is None else report.get("paused") == "True"
+
+
 def format_matched(counts: dict[str, int]) -> str:
     """``/lander/subscribers``' answer: ``"topic=count"`` pairs separated by spaces."""
     return " ".join(f"{t}={n}" for t, n in counts.items())
@@ -161,17 +169,3 @@ def parse_matched(text: str) -> dict[str, int]:
             raise ValueError(f"/lander/subscribers answered {pair!r}: expected topic=count")
         out[topic] = int(n)
     return out
-
-
-#: Name prefix of the simulator's status in its /diagnostics (lander_sim.node publishes ``lander_sim: simulation``).
-SIM_STATUS_PREFIX = "lander_sim:"
-
-
-def sim_paused(msg: Any) -> bool | None:
-    """What a ``diagnostic_msgs/DiagnosticArray`` says of the simulator: whether it is paused (its
-    ``paused`` value), None when the array holds no status of the simulator. Who watches a flight's
-    state stream reads it to tell a paused flight from a lost stream."""
-    for st in msg.status:
-        if st.name.startswith(SIM_STATUS_PREFIX):
-            return any(kv.key == "paused" and kv.value == "True" for kv in st.values)
-    return None

@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import warnings
 
-    from lander_tools.analysis import Flight, metrics, table, to_json, write_plots
+    from lander_tools.analysis import Flight, metrics, table, to_json
+    from lander_tools.analysis_plots import write_plots
     from lander_tools.bagio import BagError, BagWarning, read_bag
 
     if args.scene is not None and not args.reference:

@@ -11,7 +11,8 @@ import pytest
 from scipy.optimize import brentq
 
 from lander_sim.physics.rotation import axis_angle_to_quat
-from lander_tools.analysis import Flight, metrics, table, to_json, write_plots
+from lander_tools.analysis import Flight, metrics, table, to_json
+from lander_tools.analysis_plots import write_plots
 from lander_tools.bagio import read_bag
 
 from .synth import write_flight_bag

@@ -23,8 +23,9 @@ from lander_tools.analysis import Flight
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
-    """Angles [rad] to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+    """Angles [rad] to (-pi, pi] (``np.mod`` by ``2 pi`` is exact in floating point)."""
+    r = np.mod(a, 2.0 * np.pi)
+    return np.where(r > np.pi, r - 2.0 * np.pi, r)
 
 
 def canonical_zxz(E: np.ndarray) -> np.ndarray:

@@ -16,8 +16,8 @@ from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
 from lander_tools.analysis import Flight, metrics, table, to_json
 from lander_tools.analysis_plots import canonical_zxz, figures, write_plots
-from lander_tools.metrics_fit import GIMBAL_LOCK_KIND
 from lander_tools.bagio import read_bag
+from lander_tools.metrics_fit import GIMBAL_LOCK_KIND
 
 from .synth import write_flight_bag
 

@@ -1,9 +1,12 @@
-"""Metrics and plots of recorded flights (no rclpy; bags are read with :mod:`lander_tools.bagio`).
+"""Metrics of recorded flights (no rclpy; bags are read with :mod:`lander_tools.bagio`).
 
 :class:`Flight` turns a bag into numpy arrays (simulation time, world-frame
 position/velocity, attitude, body rates, throttles, demand altitude, events).
-:func:`metrics` computes the numbers users compare flights by, :func:`write_plots`
-draws the standard figures to PNG and :func:`compare` puts several flights side by side.
+:func:`metrics` computes the numbers users compare flights by, :func:`table` and :func:`to_json`
+put several flights side by side; :mod:`lander_tools.analysis_plots` draws the standard figures.
+
+A metric is ``None`` (printed "n/a") where the flight's scene cannot produce it; the rules, shared
+with the flight summary of ``lander fly``, are :mod:`lander_tools.metrics_fit`'s.
 
 Metric definitions (all SI):
 
@@ -13,7 +16,8 @@ Metric definitions (all SI):
   ``|v_W|`` of the first state no longer flying.
 * ``touchdown_*``: the touchdown event's figures: ``touchdown_class`` (safe / hard / crash against
   the scene's ``touchdown`` limits), descent rate and ground speed [m/s], tilt [deg], fuel left [kg].
-* ``fuel_used``: first minus last ``fuel_mass`` [kg].
+* ``fuel_used``: first minus last ``fuel_mass`` [kg]; n/a for a vehicle without thrusters.
+* ``final_altitude``: the last state's altitude [m]; n/a for a fixed pivot.
 * Demand timeline: the demand altitude in force as ``/autopilot/status`` reports it (first
   value and each change, timed at the state the autopilot first answered with it), so the
   scene's demand counts too; bags without that field fall back to ``/lander/demand_altitude``.
@@ -22,7 +26,10 @@ Metric definitions (all SI):
   its segment, which ends at the next change or at the touchdown. A demand of 0 m or less asks
   the autopilot to land (the landing and de-orbit laws), not to hover: a flight that lands on
   demand is measured on the hover before it, and a landing-only flight has no step response
-  (its figures are the touchdown's). In the step's segment,
+  (its figures are the touchdown's). A law that reports its mode (the guided descents: landing,
+  de-orbit) hovers only in :data:`HOVER_MODE`: the segment starts at its first status in that
+  mode, and a flight that never got there (a de-orbit still in orbit) has no step response.
+  In the step's segment,
   ``settling_time`` is the time after the step from which ``|h - h_d|`` stays inside
   ``band = max(2 % of the step, band_min)`` (:func:`lander_tools.sweep.metrics.settling_time`,
   the sweeps' definition; ``None`` where it never settles); ``overshoot`` is the largest excursion
@@ -34,15 +41,20 @@ Metric definitions (all SI):
   state. ``band_min`` first, because 2 % of a de-orbit's step is no hover measure: from scenario
   0's orbit (a 677 km step) it is 13.5 km, and a hover of 37 s before a landing demand put 2.4 s
   of the braking in the tail (1.9 m mean, 48.7 m largest, for a hover held within 1 m).
-* ``saturation_time``: simulation time the autopilot reported ``saturated`` (or, without
-  ``/autopilot/status``, time with any throttle at 0 or 1 while others are not).
-* ``gimbal_lock_events``: GIMBAL_LOCK events, else rising edges of the state's flag.
+* ``saturation_time``: simulation time the autopilot reported ``saturated`` outside a landing
+  law's :data:`COAST_MODE` (or, without ``/autopilot/status``, time with any throttle at 0 or 1
+  while others are not); n/a without thrusters or without an autopilot.
+* ``gimbal_lock_events``: the simulator's GIMBAL_LOCK events, as ``lander fly`` counts them
+  (:func:`lander_tools.metrics_fit.gimbal_lock_count`); for a bag without ``/lander/events``, the
+  entries into the state's flag in Euler mode (:func:`~lander_tools.metrics_fit.gimbal_lock_entries`),
+  n/a if the scene is unknown too.
 * ``quaternion_norm_drift``: ``max ||q| - 1|`` of the published attitude.
 * ``angular_momentum_drift``: relative drift of the world-frame angular momentum
-  ``L_W = R(q)^T I omega_B`` (dynamics reference eq 2, 13) over spans where every
-  throttle is zero; conserved for torque-free flight, so any drift is integration
-  error. ``I = m diag(k^2)`` with the lander's radii of gyration unless the scene's
-  vehicle (from the bag's ``scene`` metadata) says otherwise.
+  ``L_W = R(q)^T I omega_B`` (dynamics reference eq 2, 13), ``max |L_W - L_W(t0)| / |L_W(t0)|``
+  over each torque-free span (:func:`lander_tools.metrics_fit.torque_free`: no thrust, stabiliser,
+  chute, ground contact or torquing scene model), the worst span; conserved there, so any drift
+  is integration error. n/a where no state is torque-free or the scene is unknown.
+  ``I = m diag(k^2)`` with the lander's radii of gyration unless the scene's vehicle says otherwise.
 """
 from __future__ import annotations
 

@@ -48,7 +48,8 @@ Metric definitions (all SI):
   (:func:`lander_tools.metrics_fit.gimbal_lock_count`); for a bag without ``/lander/events``, the
   entries into the state's flag in Euler mode (:func:`~lander_tools.metrics_fit.gimbal_lock_entries`),
   n/a if the scene is unknown too.
-* ``quaternion_norm_drift``: ``max ||q| - 1|`` of the published attitude.
+* ``quaternion_norm_drift``: ``max ||q| - 1|`` of the published attitude; n/a for an Euler-mode
+  scene, whose quaternion is made from the angles for publishing, not integrated.
 * ``angular_momentum_drift``: relative drift of the world-frame angular momentum
   ``L_W = R(q)^T I omega_B`` (dynamics reference eq 2, 13), ``max |L_W - L_W(t0)| / |L_W(t0)|``
   over each torque-free span (:func:`lander_tools.metrics_fit.torque_free`: no thrust, stabiliser,
@@ -226,7 +227,7 @@ class Metrics:
     hover_error_max: float | None
     saturation_time: float | None
     gimbal_lock_events: int | None
-    quaternion_norm_drift: float
+    quaternion_norm_drift: float | None
     angular_momentum_drift: float | None
     controller_switches: int
     final_spin_rate: float
@@ -394,7 +395,9 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     if not flight.events_recorded:
         gl_events = gimbal_lock_entries(flight.gimbal_lock, facts.attitude) if facts is not None else None
 
-    qn = float(np.max(np.abs(np.linalg.norm(flight.q, axis=1) - 1.0))) if n else 0.0
+    qn: float | None = float(np.max(np.abs(np.linalg.norm(flight.q, axis=1) - 1.0))) if n else 0.0
+    if facts is not None and facts.attitude == "euler":
+        qn = None
     l_drift = None
     stab = flight.stabiliser if len(flight.stabiliser) == n else np.zeros(n, dtype=bool)
     chute = flight.parachute if len(flight.parachute) == n else np.zeros(n, dtype=bool)

@@ -320,6 +320,9 @@ def test_fuel_altitude_and_saturation_are_na_on_a_fixed_pivot(tmp_path: Path) ->
                      fuel=np.zeros(len(t)), meta={"scene": "gimbal-lock-pendulum", "controller": "none"})
     m = metrics(Flight.from_bag(read_bag(tmp_path / "p")))
     assert (m.fuel_used, m.final_altitude, m.saturation_time) == (None, None, None)
+    # Its angles are integrated (Euler mode): the published quaternion is made from them, unit by
+    # construction, so its norm measures no integrator.
+    assert m.quaternion_norm_drift is None
     rows = {line.split()[0]: line.split()[-1] for line in table([m]).splitlines()[2:]}
     assert rows["fuel_used"] == "n/a" and rows["final_altitude"] == "n/a"
 

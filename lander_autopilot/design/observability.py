@@ -141,7 +141,7 @@ class SensorOutputs:
 
 
 #: The state names each model's sensor rows are picked from.
-_ROWS = {
+_ROWS: dict[str, dict[str, tuple[str, ...]]] = {
     "altitude": {"altimeter": ("z",), "doppler": ("z_dot",)},
     "attitude": {"star_tracker": ("phi", "theta", "psi"), "gyro": ("wx", "wy", "wz")},
     "translational": {

@@ -98,18 +98,18 @@ def _apply(filt: NavFilter, m: Measurement, sensors: SensorsConfig, rec: FlightR
 
 def fly(scene: Scene, seed: int, duration: float, demand: Demand | None = None,
         initial_sigma: tuple[float, float, float] = INITIAL_SIGMA) -> FlightRecord:
-    """Fly ``scene`` (its autopilot on the truth; ``demand`` defaults to its demand altitude) for
-    ``duration`` [s] or until it lands, with the filter alongside; sensors and initial error from ``seed``."""
+    """Fly ``scene`` (its autopilot on the truth, ``demand`` by default its demand altitude; no
+    autopilot: the thrusters stay off) for ``duration`` [s] or until it lands, with the filter
+    alongside; sensors and initial error from ``seed``."""
     if scene.sensors is None or "imu" not in scene.sensors:
         raise ValueError(f"scene {scene.name}: the filter needs sensors.imu switched on")
-    if scene.autopilot is None:
-        raise ValueError(f"scene {scene.name}: needs an autopilot to fly")
     sensors = dataclasses.replace(scene.sensors, seed=seed)
     sim = Simulation(scene)
     suite = SensorSuite(sensors)
-    ctrl = make_controller(scene.autopilot.controller, scene.vehicle, **dict(scene.autopilot.parameters))
+    ap = scene.autopilot
+    ctrl = None if ap is None else make_controller(ap.controller, scene.vehicle, **dict(ap.parameters))
     if demand is None:
-        alt = scene.autopilot.demand_altitude
+        alt = None if ap is None else ap.demand_altitude
         demand = Demand(altitude=500.0 if alt is None else alt)
     P0 = initial_covariance(sensors, initial_sigma)
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 1000])))
@@ -117,8 +117,9 @@ def fly(scene: Scene, seed: int, duration: float, demand: Demand | None = None,
     imu = suite.sensors["imu"]
     rec = FlightRecord()
     while sim.t < duration - 1e-9 and sim.phase.name == "FLYING":
-        state: StateView = sim.state()
-        sim.set_throttles(ctrl.update(sim.t, state, demand).throttles)
+        if ctrl is not None:
+            state: StateView = sim.state()
+            sim.set_throttles(ctrl.update(sim.t, state, demand).throttles)
         y_before = sim.y.copy()
         t_before = sim.t
         sim.step()

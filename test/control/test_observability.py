@@ -200,3 +200,14 @@ def test_bad_input_names_what_was_wrong() -> None:
         observability(np.eye(2), np.eye(3))
     with pytest.raises(DesignError, match="positive definite"):
         kalman(np.eye(2), np.eye(2), np.eye(2), np.eye(2), np.zeros((2, 2)))
+
+
+def test_the_design_reports_sensor_section_shows_the_ranks_and_the_separation() -> None:
+    from lander_autopilot.design.report import format_sensors_report, sensors_report
+
+    rep = sensors_report(lander("canted"), FUEL, ("altimeter", "doppler", "star_tracker", "gyro", "accelerometer"))
+    assert [rep[k]["observability_rank"] for k in ("altitude", "attitude", "translational")] == [2, 6, 10]
+    assert rep["altitude"]["lqg"]["separation_error"] < 1e-8
+    only = sensors_report(lander("canted"), FUEL, ("doppler",))
+    assert only["altitude"]["observability_rank"] == 1 and "kalman" not in only["altitude"]
+    assert "not observable with these sensors" in format_sensors_report(only)

@@ -54,3 +54,13 @@ def test_every_default_passes_its_own_table() -> None:
         for p in table:
             if not isinstance(p.default, tuple):
                 assert p.check(p.default) is None, f"{key}.{p.name}"
+
+
+def test_the_user_guide_holds_every_sensors_parameter_table() -> None:
+    from pathlib import Path
+
+    from lander_sim.sensors.params import table_markdown
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "estimation.md").read_text()
+    for key, (table, _) in SENSORS.items():
+        assert table_markdown(table) in doc, f"docs/estimation.md: the {key} table differs from its PARAMS"

@@ -211,3 +211,18 @@ def test_the_design_reports_sensor_section_shows_the_ranks_and_the_separation() 
     only = sensors_report(lander("canted"), FUEL, ("doppler",))
     assert only["altitude"]["observability_rank"] == 1 and "kalman" not in only["altitude"]
     assert "not observable with these sensors" in format_sensors_report(only)
+
+
+def test_lander_design_sensors_prints_the_section_and_refuses_an_unknown_sensor(capsys) -> None:
+    import argparse
+
+    from lander_tools.commands import design
+
+    parser = argparse.ArgumentParser()
+    design.add_arguments(parser)
+    assert design.run(parser.parse_args(["hover-canted", "--sensors", "altimeter", "doppler"])) == 0
+    out = capsys.readouterr().out
+    assert "== Sensors: altimeter doppler" in out and "separation: closed-loop poles" in out
+    assert design.run(parser.parse_args(["hover-canted", "--sensors", "sonar"])) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown sensor 'sonar'" in err[0]

@@ -186,3 +186,17 @@ def test_the_bounds_are_the_chi_square_quantiles() -> None:
     lo, hi = average_bounds(2, 1)
     assert lo == pytest.approx(-2 * math.log(0.975), rel=1e-12)
     assert hi == pytest.approx(-2 * math.log(0.025), rel=1e-12)
+
+
+def test_orbit_with_the_ground_fix_is_consistent() -> None:
+    # Coasting in orbit with kilometre-level initial errors: the IMU carries the state between
+    # ground fixes every 10 s, the star tracker holds the attitude. 4 runs of 100 s.
+    sc = load_scene("circular-orbit")
+    sc = dataclasses.replace(sc, sensors=SensorsConfig(0, {k: defaults(SENSORS[k][0])
+                                                         for k in ("imu", "star_tracker", "ground_fix")}))
+    runs = [fly(sc, seed, 100.0, initial_sigma=(1000.0, 1.0, math.radians(1.0))) for seed in range(4)]
+    check, _ = anees(np.array([r.nees for r in runs]), N_ERR)
+    assert check.inside, check
+    fixes = [n for r in runs for n, _ in r.nis["ground_fix"]]
+    assert len(fixes) == 4 * 11  # the first sample after the first step (due since t = 0), then t = 10, ..., 100 s
+    assert anis(np.array(fixes), 6).inside

@@ -17,7 +17,10 @@ rolling start, 60 s; the same sensors: the star tracker drops out while the body
 2 deg/s), ``orbit`` (circular-orbit, coasting, 300 s; IMU, star tracker, ground fix, initial errors
 of 1 km, 1 m/s and 1 degree).
 
-    python bench/nav_consistency.py [--runs N] [--json FILE] [--quick]
+A scene file of your own that switches sensors on (``sensors:``, with ``imu``) is flown the same way:
+
+    python bench/nav_consistency.py [--runs N] [--case NAME] [--json FILE] [--quick]
+    python bench/nav_consistency.py --scene FILE.yaml --duration S [--runs N]
 """
 from __future__ import annotations
 
@@ -46,10 +49,16 @@ CASES = {
 }
 
 
-def run_case(name: str, runs: int) -> dict:
-    scene_name, keys, duration, sigma0, settle = CASES[name]
-    sc = load_scene(scene_name)
-    sc = dataclasses.replace(sc, sensors=SensorsConfig(0, {k: defaults(SENSORS[k][0]) for k in keys}))
+def run_case(name: str, runs: int, scene_file: str | None = None, duration_s: float = 60.0) -> dict:
+    if scene_file is not None:
+        sc = load_scene(scene_file)
+        if sc.sensors is None:
+            raise SystemExit(f"{scene_file}: the scene switches no sensors on (add a sensors: section with imu)")
+        scene_name, keys, duration, sigma0, settle = sc.name, tuple(sc.sensors.sections), duration_s, INITIAL_SIGMA, 5.0
+    else:
+        scene_name, keys, duration, sigma0, settle = CASES[name]
+        sc = load_scene(scene_name)
+        sc = dataclasses.replace(sc, sensors=SensorsConfig(0, {k: defaults(SENSORS[k][0]) for k in keys}))
     t0 = time.perf_counter()
     recs = [fly(sc, seed, duration, initial_sigma=sigma0) for seed in range(runs)]
     wall = time.perf_counter() - t0
@@ -75,9 +84,14 @@ def main(argv: list[str] | None = None) -> int:
     p = C.parser(__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, default=100, help="flights per case (default 100)")
     p.add_argument("--case", choices=sorted(CASES), action="append", help="only these cases (default: all)")
+    p.add_argument("--scene", metavar="FILE", help="fly this scene file (its own sensors) instead of the cases")
+    p.add_argument("--duration", type=float, default=60.0, help="flight time with --scene [s] (default 60)")
     args = p.parse_args(argv)
     runs = 10 if args.quick else args.runs
-    results = [run_case(n, runs) for n in (args.case or list(CASES))]
+    if args.scene:
+        results = [run_case("scene", runs, args.scene, args.duration)]
+    else:
+        results = [run_case(n, runs) for n in (args.case or list(CASES))]
     rows = []
     for r in results:
         nis = "; ".join(f"{k[5:]} {v['value']:.3f} [{v['bounds'][0]:.3f}, {v['bounds'][1]:.3f}]"

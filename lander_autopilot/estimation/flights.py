@@ -25,6 +25,7 @@ from lander_sim.physics.rotation import quat_mult
 from lander_sim.physics.state import StateView
 from lander_sim.scenes.loader import Scene
 from lander_sim.sensors.base import Measurement
+from lander_sim.sensors.imu import IMU
 from lander_sim.sensors.suite import SensorsConfig, SensorSuite
 from lander_sim.sensors.truth import truth_after_step
 from lander_sim.simulation import Simulation
@@ -115,6 +116,7 @@ def fly(scene: Scene, seed: int, duration: float, demand: Demand | None = None,
     rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 1000])))
     filt = make_filter(sensors, sim, P0, rng)
     imu = suite.sensors["imu"]
+    assert isinstance(imu, IMU)  # SENSORS maps "imu" to it
     rec = FlightRecord()
     while sim.t < duration - 1e-9 and sim.phase.name == "FLYING":
         if ctrl is not None:
@@ -133,7 +135,7 @@ def fly(scene: Scene, seed: int, duration: float, demand: Demand | None = None,
         for m in ms[1:]:
             _apply(filt, m, sensors, rec)
         e = error_state(filt.state, truth.r_W, truth.v_W, truth.q,
-                        imu.gyro_bias.value, imu.accel_bias.value)  # type: ignore[attr-defined]
+                        imu.gyro_bias.value, imu.accel_bias.value)
         rec.t.append(sim.t)
         rec.errors.append(e)
         rec.sigmas.append(np.sqrt(np.diag(filt.state.P)))

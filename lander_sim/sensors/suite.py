@@ -14,7 +14,7 @@ absent, null or false is off, and a scene with no ``sensors:`` has none)::
 **Sampling.** Sensor ``k`` of rate ``f`` is due at ``t = j / f`` (``j = 0, 1, ...``); :meth:`SensorSuite.sample`
 takes the truth at a simulation step's time and gives one measurement from every sensor due at or
 before it, stamped with the step's time (a sensor faster than the step gives one sample per step,
-its noise that of the interval since its previous sample). **Seeds.** Sensor ``k`` (its index in
+its noise that of the interval since its previous sample, or since switch-on at ``t = 0``). **Seeds.** Sensor ``k`` (its index in
 :data:`SENSORS`) draws from ``Generator(PCG64(SeedSequence([seed, k])))``: switching one sensor on
 or off leaves the others' draws unchanged.
 """
@@ -105,7 +105,8 @@ class SensorSuite:
             if t < self._next[key] - 1e-9 * period:
                 continue
             last = self._last[key]
-            dt = period if last is None else t - last
+            # the first output averages from switch-on at t = 0 (one period when sampled at t = 0)
+            dt = (t if t > 0.0 else period) if last is None else t - last
             self._last[key] = t
             self._next[key] = (math.floor(t * sensor.rate + 1e-9) + 1) / sensor.rate
             m = sensor.measure(truth, dt)

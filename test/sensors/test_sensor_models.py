@@ -222,3 +222,11 @@ def test_the_imu_interval_truth_is_the_steps_mean_rate_and_specific_force() -> N
     assert abs(w[0]) < 1e-15 and abs(w[1]) < 1e-15
     assert w[2] == pytest.approx(0.2, rel=(0.2 * spin.dt) ** 2)
     np.testing.assert_allclose(quat_exp_step(y0[6:10], w, spin.dt), spin.y[6:10], atol=1e-15)
+
+
+def test_the_imus_first_output_averages_from_switch_on() -> None:
+    v = _values("imu")
+    m = SensorSuite(SensorsConfig(0, {"imu": v})).sample(_truth(t=0.1))[0]
+    np.testing.assert_allclose(m.sigma[0:3], v["gyro_noise_density"] / math.sqrt(0.1), rtol=1e-12)
+    m0 = SensorSuite(SensorsConfig(0, {"imu": v})).sample(_truth(t=0.0))[0]
+    np.testing.assert_allclose(m0.sigma[3:6], v["accel_noise_density"] * math.sqrt(v["rate"]), rtol=1e-12)

@@ -20,6 +20,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--attitude-poles", type=float, nargs=6, default=(-1.0,) * 6, metavar="P", help="attitude poles (6)"
     )
+    parser.add_argument("--sensors", nargs="*", default=None, metavar="SENSOR",
+                        help="add observability, Kalman gain and LQG for these sensors (altimeter doppler star_tracker "
+                             "gyro accelerometer)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,9 +38,18 @@ def run(args: argparse.Namespace) -> int:
         rep = design_report(
             scene.vehicle, fuel, args.altitude, tuple(args.altitude_poles), tuple(args.attitude_poles)
         )
+        if args.sensors is not None:
+            from lander_autopilot.design.report import sensors_report
+
+            rep["sensors"] = sensors_report(scene.vehicle, fuel, tuple(args.sensors), args.altitude)
     except ValueError as exc:
         print(f"lander design: {exc}", file=sys.stderr)
         return 2
     rep = {"scene": scene.name, **rep}
-    print(json.dumps(rep, indent=2) if args.json else f"scene {scene.name}\n" + format_report(rep))
+    text = f"scene {scene.name}\n" + format_report(rep)
+    if "sensors" in rep:
+        from lander_autopilot.design.report import format_sensors_report
+
+        text += "\n" + format_sensors_report(rep["sensors"])
+    print(json.dumps(rep, indent=2) if args.json else text)
     return 0

@@ -182,6 +182,7 @@ class ConicProgram:
         # constant values of A and b
         self._values0 = self._constant_values()
         self._order: np.ndarray | None = None
+        self._solvers: dict[bool, Any] = {}
 
     @staticmethod
     def _settings(refine: bool) -> Any:
@@ -195,6 +196,7 @@ class ConicProgram:
         for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
             setattr(settings, name, SOLVER_TOLERANCE)
         settings.iterative_refinement_enable = refine
+        settings.presolve_enable = False  # the data is updated in place between passes (fixed pattern)
         return settings
 
     def _constant_values(self) -> np.ndarray:
@@ -291,7 +293,12 @@ class ConicProgram:
         finds it infeasible or does not solve it (to its full or reduced tolerances). ``refine``:
         Clarabel's iterative refinement (:meth:`_settings`)."""
         P, q, A, b = self.matrices(dt, lin)
-        sol = clarabel.DefaultSolver(P, q, A, b, self.cones, self.settings[refine]).solve()
+        solver = self._solvers.get(refine)
+        if solver is None:
+            solver = self._solvers[refine] = clarabel.DefaultSolver(P, q, A, b, self.cones, self.settings[refine])
+        else:
+            solver.update(P=P.data, q=q, A=A.data, b=b)
+        sol = solver.solve()
         if str(sol.status) not in ("Solved", "AlmostSolved"):
             return None
         x = np.asarray(sol.x)

@@ -242,13 +242,14 @@ class FixedTimeProgram:
     flat-out burn ``z0(t)`` once (their eq 19-20); that is conservative by ``(z - z0)^2 / 2`` after
     a coast, a few per cent of thrust. ``backend``: ``"conic"`` (:class:`.descent_conic.ConicProgram`,
     flown) or ``"cvxpy"`` (:class:`CvxpyProgram`, the cross-check). ``solves`` counts the convex
-    solves (passes) made so far.
+    solves (passes) made so far. ``refine``: the solver's iterative refinement on the passes after
+    the first (:meth:`_pass`).
     """
 
-    def __init__(self, problem: DescentProblem, steps: int, backend: str = "conic") -> None:
+    def __init__(self, problem: DescentProblem, steps: int, backend: str = "conic", refine: bool = True) -> None:
         if backend not in ("conic", "cvxpy"):
             raise GuidanceError(f"backend must be 'conic' or 'cvxpy', got {backend!r}")
-        self.problem, self.N = problem, int(steps)
+        self.problem, self.N, self.refine = problem, int(steps), refine
         self.program: ConicProgram | CvxpyProgram = (ConicProgram if backend == "conic" else CvxpyProgram)(problem, steps)
         self.solves = 0
         self._firsts: dict[float, tuple[Nodes | None, np.ndarray | None]] = {}
@@ -319,12 +320,13 @@ class FixedTimeProgram:
         m0, drag = self.problem.mass, self.problem.drag
         passes = passes if passes is not None else (4 if drag is None else 30)
         dt, z_ref, z_flat, drag_ref = self._start(final_time)
-        if warm is not None and len(warm.t) == self.N + 1:
-            z_ref = np.log(warm.mass)
+        if warm is not None:
+            pos, vel, mass = _at_fractions(warm, self.N)
+            z_ref = np.log(mass)
             if drag_ref is not None:
-                drag_ref = (warm.position_L, warm.velocity_L, drag_ref[2])
+                drag_ref = (pos, vel, drag_ref[2])
         relax, prev_step = 1.0, None
-        best: float | None = None
+        best: float | None = None if warm is None or drag is None else math.log(float(warm.mass[-1]))
         converged = drag is None
         nodes: Nodes | None = None
         for i in range(passes):
@@ -332,7 +334,7 @@ class FixedTimeProgram:
                 self.first(final_time)
                 nodes, J = self._firsts[final_time]
             else:
-                nodes, J = self._pass(dt, z_ref, z_flat, drag_ref)
+                nodes, J = self._pass(dt, z_ref, z_flat, drag_ref, self.refine)
             if nodes is None:
                 return None
             zN = float(nodes.z[-1])
@@ -368,6 +370,20 @@ class FixedTimeProgram:
         t = np.arange(self.N + 1) * dt
         return DescentSolution(t=t, position_L=nodes.r, velocity_L=nodes.v, mass=mass, thrust_L=nodes.u * mass[:, None],
                                fuel=float(m0 - mass[-1]), final_time=float(final_time), solve_count=1)
+
+
+def _at_fractions(sol: DescentSolution, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position [m], velocity [m/s] and mass [kg] of ``sol`` at ``steps + 1`` nodes at the same
+    fractions of its descent as a programme of ``steps`` steps has them (linear between ``sol``'s
+    nodes; ``sol``'s own nodes when it has that many)."""
+    if len(sol.t) == steps + 1:
+        return sol.position_L, sol.velocity_L, sol.mass
+    s, f = np.linspace(0.0, 1.0, steps + 1), sol.t / sol.final_time
+
+    def at(a: np.ndarray) -> np.ndarray:
+        return np.stack([np.interp(s, f, a[:, i]) for i in range(a.shape[1])], axis=1)
+
+    return at(sol.position_L), at(sol.velocity_L), np.interp(s, f, sol.mass)
 
 
 def solve_fixed_time(problem: DescentProblem, final_time: float, steps: int = 60,
@@ -460,8 +476,9 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     time in the bracket is feasible.
     """
     lo, hi = map(float, t_bounds if t_bounds is not None else _bracket(problem))
-    fine_program = FixedTimeProgram(problem, steps, backend)
-    coarse_program = fine_program if steps <= SEARCH_STEPS else FixedTimeProgram(problem, SEARCH_STEPS, backend)
+    fine_program = FixedTimeProgram(problem, steps, backend, refine=False)
+    coarse_program = (fine_program if steps <= SEARCH_STEPS
+                      else FixedTimeProgram(problem, SEARCH_STEPS, backend, refine=False))
     coarse, fine = _Search(coarse_program), _Search(fine_program)
 
     def tol(t: float) -> float:
@@ -479,13 +496,11 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     t_edge = coarse.edge(grid[k - 1], grid[k], tol(grid[k])) if k > 0 else grid[0]
     a, b = coarse.rise(t_edge, tol(t_edge), hi)
     t_coarse = _Search.golden(lambda t: coarse.fuel(t, warm=True), a, b, tol(a) * EDGE_SHARE)
-    # (4) golden section of the converged fuel on the fine programme about the coarse minimum,
-    # each trial warm from the nearest one before
-    width = FINE_BRACKET * max(1.0, t_coarse)
-    fine.fuel(t_coarse)
-    _Search.golden(lambda t: fine.fuel(t, warm=True), max(lo, t_coarse - width), min(hi, t_coarse + width),
-                   tol(t_coarse) * EDGE_SHARE)
-    sol = fine.best()
+    # (4) the caller's programme at the coarse minimum, its drag started from the coarse optimum
+    sol = coarse.cache.get(t_coarse)
+    if fine is not coarse:
+        sol = fine_program.solve(t_coarse, warm=sol)
+        fine.cache[t_coarse] = sol
     if sol is None:
         # (5) no settled optimum there: golden section of the converged fuel on the grid's
         # bracket of its first rise (the slow, plain search)

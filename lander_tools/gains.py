@@ -102,7 +102,7 @@ def read_gains(path: Path) -> tuple[str, dict[str, Any]]:
 
 def parse_sets(items: Sequence[str]) -> dict[str, Any]:
     """``--set NAME=VALUE`` items as ``{NAME: value}``, each value read as YAML (``0.2``,
-    ``[-0.9, -1.1]``, ``none``); :class:`GainsError` naming an item without ``=`` or a bad value."""
+    ``[-0.9, -1.1]``, ``null``); :class:`GainsError` naming an item without ``=`` or a bad value."""
     out: dict[str, Any] = {}
     for item in items:
         name, sep, text = item.partition("=")

@@ -140,6 +140,7 @@ def uncontrollable_axes(vehicle: Vehicle, fuel: float, models: tuple[str, ...],
     cannot hover: its altitude model is reported with rank 0. Plain numpy (no python-control)."""
     out: list[AxesRank] = []
     for model in models:
+        states: tuple[str, ...]
         if model == "altitude":
             states = ALTITUDE_STATES
             try:

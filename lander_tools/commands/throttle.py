@@ -37,12 +37,12 @@ def throttles(value: float, n_thrusters: int, thruster: int | None) -> list[floa
 
 
 def run(args: argparse.Namespace) -> int:
-    from lander_tools.live.link import SIM_NODE
+    from lander_tools.live.link import SIM_NODE, FlightLink, Outcome
     from lander_tools.live.verbs import run_verb
 
     throttles(args.throttle, max(1, (args.thruster or 0) + 1), args.thruster)  # the value, before any wait
 
-    def act(link):
+    def act(link: FlightLink) -> Outcome:
         from lander_sim.scenes import load_scene
 
         scene = link.get_parameters(SIM_NODE, ["scene"]).get("scene")
@@ -51,8 +51,6 @@ def run(args: argparse.Namespace) -> int:
         command = throttles(args.throttle, load_scene(scene).vehicle.n_thrusters, args.thruster)
         out = link.publish_throttles(command, wait=True)
         if out.ok:
-            from lander_tools.live.link import Outcome
-
             return Outcome(True, f"throttles {', '.join(f'{x:g}' for x in command)} sent on /lander/throttle "
                                  f"({out.message})")
         return out

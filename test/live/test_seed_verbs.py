@@ -10,10 +10,10 @@ import sys
 import threading
 from pathlib import Path
 
-from .liveutil import start_flight
-
 from lander_tools.live.link import FlightLink
 from lander_tools.live.wsclient import wait_until
+
+from .liveutil import start_flight
 
 TIMEOUT = 60.0
 

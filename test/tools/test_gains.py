@@ -94,3 +94,14 @@ def test_the_warning_names_the_axes_the_scene_thrusters_cannot_control() -> None
     assert controllability_warning("free-spin-canted", "combined") is None  # canted: rank 6
     assert controllability_warning("8", "baseline") is None  # an altitude law: eq 16 is rank 2 of 2
     assert controllability_warning("8", None) is None  # the sim alone
+
+
+def test_each_law_reports_the_gains_it_flies_in_one_line() -> None:
+    from lander_autopilot.ros.loop_stats import format_gains
+
+    vehicle = load_scene("hover").vehicle
+    assert format_gains(make_controller("baseline", vehicle, kp=0.2, kd=0.3).gains()) == "kp 0.2, kd 0.3"
+    K = [[0.1, 0.25]]
+    assert format_gains(make_controller("altitude", vehicle, K=K).gains()) == "K [[0.1, 0.25]]"
+    combined = make_controller("combined", vehicle, K_altitude=K).gains()
+    assert list(combined) == ["K_altitude", "K_attitude"] and combined["K_attitude"].shape == (4, 6)

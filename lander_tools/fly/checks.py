@@ -118,9 +118,15 @@ def controllability_warning(scene_name: str, controller: str | None) -> str | No
 
 
 def resolve_controller(plan: FlightPlan) -> str | None:
-    """The controller to fly, or ``None`` for the sim alone (scene without autopilot, or ``none``)."""
+    """The controller to fly, or ``None`` for the sim alone (``none``, or a scene without autopilot):
+    ``--controller``, else the ``controller`` of the ``--params`` file's autopilot section (a gains
+    file names the law its gains are for), else the scene's."""
     if plan.controller is not None:
         return None if plan.controller.lower() == "none" else plan.controller
+    if plan.params_file is not None:
+        named = read_params_file(plan.params_file)[AUTOPILOT_NODE].get("controller")
+        if isinstance(named, str) and named:
+            return None if named.lower() == "none" else named
     try:
         scene = load_scene(plan.scene)
     except ValueError as exc:

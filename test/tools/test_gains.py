@@ -105,3 +105,14 @@ def test_each_law_reports_the_gains_it_flies_in_one_line() -> None:
     assert format_gains(make_controller("altitude", vehicle, K=K).gains()) == "K [[0.1, 0.25]]"
     combined = make_controller("combined", vehicle, K_altitude=K).gains()
     assert list(combined) == ["K_altitude", "K_attitude"] and combined["K_attitude"].shape == (4, 6)
+
+
+def test_a_gains_file_given_as_params_flies_the_controller_it_names(tmp_path: Path) -> None:
+    from lander_tools.fly.checks import resolve_controller
+
+    path = tmp_path / "gains.yaml"
+    assert cli.main(["design", "hover", "--write", str(path)]) == 0
+    # The scene's own law is baseline; the file's gains are combined's and only combined takes them.
+    assert resolve_controller(FlightPlan(scene="hover", params_file=path)) == "combined"
+    assert resolve_controller(FlightPlan(scene="hover", params_file=path, controller="lqr")) == "lqr"
+    assert resolve_controller(FlightPlan(scene="hover")) == "baseline"

@@ -39,3 +39,28 @@ def test_a_controller_whose_axes_the_scene_cannot_control_is_said_at_start_up(mo
     assert done.returncode == 0, done.stdout + done.stderr
     warnings = [ln for ln in done.stdout.splitlines() if ln.startswith("[fly] warning: ")]
     assert len(warnings) == 1 and "attitude controllability rank 2 of 6" in warnings[0], done.stdout
+
+
+def test_switch_flies_a_gains_file_while_flying(module_ros_domain: int, tmp_path: Path) -> None:
+    import yaml
+    from live.liveutil import start_flight, wait_flight_running
+
+    from lander_tools.gains import read_gains
+    from lander_tools.live.link import FlightLink
+
+    gains = tmp_path / "gains.yaml"
+    assert cli.main(["design", "hover-canted", "--altitude-poles", "-0.5", "-0.6", "--write", str(gains)]) == 0
+    flight = start_flight(tmp_path, scene="hover-canted", speed=1.0, duration=600.0)
+    try:
+        wait_flight_running(flight)
+        done = subprocess.run([sys.executable, "-m", "lander_tools.cli", "switch", "--gains", str(gains)],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout.startswith("lander switch: switched 'combined-quaternion' -> 'combined'"), done.stdout
+        with FlightLink("test_switch_gains") as link:
+            now = link.get_parameters("/autopilot", ["controller", "controller_params"])
+        assert now["controller"] == "combined"
+        assert yaml.safe_load(now["controller_params"]) == read_gains(gains)[1]  # the file's gains, every bit
+        assert flight.returncode is None, flight.output()
+    finally:
+        flight.close()

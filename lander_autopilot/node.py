@@ -183,7 +183,9 @@ class AutopilotNode(Node):
         self._reports = ReportClock()
         self._diag = DiagnosticArray()
         self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        gains = self._gains_text()
+        #: The flying law's gains as one line, made once per controller installed (a law's gains
+        #: are fixed at its construction): the control report carries it every second.
+        self._gains_line = gains = self._gains_text()
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {loaded.name!r}, demand altitude {self.slot.demand.altitude} m"
             + (f", gains {gains}" if gains else "")
@@ -405,6 +407,7 @@ class AutopilotNode(Node):
         if choice is not None:
             seq = self.slot.last_sequence
             old = self.slot.swap(choice)
+            self._gains_line = self._gains_text()
             self._loop.reset(keep_period=True)  # the figures are the installed controller's
             detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
                       f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
@@ -478,7 +481,7 @@ class AutopilotNode(Node):
         when its ``diagnostics()`` gives any (a failing one is reported, never raised)."""
         name = self.slot.name
         statuses = [(f"{NODE_NAME}: control", control_status(self._loop.summary(), name, self.slot.mode,
-                                                             self._gains_text(),
+                                                             self._gains_line,
                                                              dump_controller_params(self.slot.choice.params)))]
         try:
             figures = dict(self.slot.choice.controller.diagnostics())

@@ -150,6 +150,8 @@ def apply_gains(plan: Any, gains: Path | None, sets: Sequence[str], explicit_con
                              f"('lander design SCENE --controller {explicit_controller} --write FILE')")
         what = f"--gains {gains}"
     else:
+        if plan.controller is None and scene.autopilot is None:
+            raise GainsError(f"--set: scene {scene.name!r} flies no autopilot: name the law with --controller")
         controller = plan.controller or base.controller
         if controller.lower() == "none":
             raise GainsError("--set: the flight has no autopilot (--controller none): nothing takes the parameters")

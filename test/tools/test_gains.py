@@ -82,6 +82,11 @@ def test_set_reads_yaml_values_on_top_of_the_scene_parameters() -> None:
     assert plan.controller == "baseline" and plan.controller_params == {"kd": 0.3}
     with pytest.raises(GainsError, match="--set: controller 'baseline': kp: expected a finite number"):
         apply_gains(FlightPlan(scene="hover"), None, ["kp=fast"], None)
+    with pytest.raises(GainsError, match="scene 'free-spin' flies no autopilot: name the law with --controller"):
+        apply_gains(FlightPlan(scene="8"), None, ["kp=0.2"], None)
+    plan = FlightPlan(scene="8", controller="attitude-quaternion")
+    apply_gains(plan, None, ["poles=[-2, -2, -2, -2, -2, -2]"], None)  # canted or not, poles place what they can
+    assert plan.controller_params == {"poles": [-2, -2, -2, -2, -2, -2]}
 
 
 def test_the_warning_names_the_axes_the_scene_thrusters_cannot_control() -> None:

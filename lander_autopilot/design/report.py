@@ -7,6 +7,7 @@ prints it like seed 2's Octave scripts do.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -114,6 +115,52 @@ def design_report(
             ),
         },
     }
+
+
+@dataclass(frozen=True)
+class AxesRank:
+    """One model a law controls that a vehicle's thrusters do not fully reach (:func:`uncontrollable_axes`)."""
+
+    model: str  #: ``"altitude"`` (eq 16) or ``"attitude"`` (eq 28)
+    rank: int  #: rank of eq 6's controllability matrix
+    n_states: int
+    #: States with a part in the uncontrollable subspace (the left null space of eq 6's ``P``), in
+    #: the model's order: ``psi, wz`` for vertical thrusters (no torque about body z).
+    states: tuple[str, ...]
+
+
+def uncontrollable_axes(vehicle: Vehicle, fuel: float, models: tuple[str, ...],
+                        E_e: tuple[float, float, float] = UPRIGHT_EULER) -> list[AxesRank]:
+    """The models among ``models`` (``"altitude"``, ``"attitude"``; others are ignored) that the
+    vehicle's enabled thrusters cannot control at the hover, each with its rank and the states
+    its uncontrollable directions involve (a component above 1e-9 of a unit basis vector).
+
+    Rank of eq 6's ``P = [B AB ... A^(n-1) B]`` (:func:`.controllability.controllability`), the
+    attitude model linearised at ``E_e`` (upright by default). A vehicle with no upward thrust
+    cannot hover: its altitude model is reported with rank 0. Plain numpy (no python-control)."""
+    out: list[AxesRank] = []
+    for model in models:
+        states: tuple[str, ...]
+        if model == "altitude":
+            states = ALTITUDE_STATES
+            try:
+                alt = altitude_model(vehicle, fuel, 500.0)
+            except DesignError:
+                out.append(AxesRank(model, 0, len(states), states))
+                continue
+            A, B = alt.A, alt.B
+        elif model == "attitude":
+            states = ATTITUDE_STATES
+            att = attitude_model(vehicle, fuel, E_e)
+            A, B = att.A, att.B
+        else:
+            continue
+        c = controllability(A, B)
+        if c.controllable:
+            continue
+        involved = tuple(s for j, s in enumerate(states) if np.linalg.norm(c.uncontrollable[j, :]) > 1e-9)
+        out.append(AxesRank(model, c.rank, A.shape[0], involved))
+    return out
 
 
 #: [-] entries under this fraction of the largest of their matrix (or pole set) are printed as 0:

@@ -36,7 +36,8 @@ def _figure(value: float, fmt: str, unit: str) -> str:
 
 def summary(result: FlightResult) -> str:
     """The flight summary ``lander fly`` prints: every figure named, with its unit; "n/a" where a
-    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot)."""
+    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot); the
+    controller and the gains in force as the autopilot last reported them."""
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
     lines = [
         f"flight ended: {result.outcome} at sim time t = {result.sim_time:.2f} s "
@@ -67,6 +68,9 @@ def summary(result: FlightResult) -> str:
         lines.append(f"  touchdown at t = {_figure(td.get('t_impact', math.nan), '.3f', 's')}: " + ", ".join(figures))
     elif f:
         lines.append("  touchdown: n/a (none in this flight)")
+    if result.controller:
+        gains = f"gains in force {result.gains}" if result.gains else "no gains named by the law"
+        lines.append(f"  controller {result.controller!r}: {gains}")
     warning = lockstep_warning(result.lockstep_timeouts)
     if warning:
         lines.append(f"  lockstep: {warning}")

@@ -43,7 +43,6 @@ def test_the_last_state_says_na_for_what_the_scene_has_not() -> None:
     import math
 
     from lander_interfaces.msg import LanderState
-
     from lander_tools.fly.summary import final_state
 
     rotor = LanderState()

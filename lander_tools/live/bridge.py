@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import sys
 import threading
@@ -167,6 +168,12 @@ class LiveBridge:
         self.paused = False
         self.params: dict[str, Any] = {"demand_altitude": None, "controller": "", "controller_params": ""}
         self.tracker: views.SceneTracker | None = None
+        self.history = views.History()
+        #: The mean wind in force [m/s, world]: the scene's, then the last one published on
+        #: /lander/wind that the simulator did not refuse (a refusal restores the one before).
+        self.wind_W: list[float] | None = None
+        self._wind_before: list[float] | None = None
+        self._scene_wind_W: list[float] | None = None
         self._latest: bytes | None = None
         self._latest_published = True
         self._last_out = 0.0
@@ -203,7 +210,7 @@ class LiveBridge:
         if page_port is not None:
             from lander_tools.live.page import PageServer
 
-            self.page = PageServer(host, page_port, self.port)
+            self.page = PageServer(host, page_port, self.port, routes={"/history.json": self.history_json})
             self.page_port = self.page.port
 
         state_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -214,6 +221,7 @@ class LiveBridge:
         # twice the publishing rate cap. Every state is shown while they come slower than that.
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import Vector3Stamped
         from rcl_interfaces.msg import ParameterEvent
 
         self._state_node = rclpy.create_node(NODE_NAME + "_state", context=self.link.context,
@@ -226,6 +234,7 @@ class LiveBridge:
         self.link.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
         self.link.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
         self.link.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
+        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, reliable)
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -249,12 +258,15 @@ class LiveBridge:
         from lander_sim.scenes import load_scene
 
         try:
-            scene = self.link.get_parameters(SIM_NODE, ["scene"])["scene"]
-            vehicle = load_scene(scene).vehicle
+            scene = load_scene(self.link.get_parameters(SIM_NODE, ["scene"])["scene"])
         except (NoFlight, TimeoutError, ValueError) as exc:
             self._status(f"flight found but not read yet: {exc}", error=False)
             return
-        self.tracker = views.SceneTracker(Look.of(vehicle))
+        with self._lock:
+            self._scene_wind_W = [float(v) for v in scene.wind_W]
+            if self.wind_W is None:
+                self.wind_W = self._scene_wind_W
+        self.tracker = views.SceneTracker(Look.of(scene.vehicle), fixed_pivot=not scene.translation)
         self.ready = True
 
     def _read_autopilot(self) -> None:
@@ -326,14 +338,23 @@ class LiveBridge:
         t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if msg.sequence < self._last_seq and self.tracker is not None:
             self.tracker.reset()  # a new epoch (reset / scene load): new trail
+            with self._lock:
+                self.wind_W = self._scene_wind_W  # a reset restores the scene's mean wind
         self._last_seq = msg.sequence
         record = views.state_record(msg, self.params.get("demand_altitude"), str(self.params.get("controller") or ""),
                                     self.paused)
+        record["controller_params"] = str(self.params.get("controller_params") or "")
+        with self._lock:
+            record["wind_W"] = self.wind_W
         here = None
         if self.tracker is not None:
             p, q = msg.position, msg.orientation
             here = self.tracker.add((p.x, p.y, p.z))
             record["position_S"], record["up_S"] = list(here), list(self.tracker.body_up((q.x, q.y, q.z, q.w)))
+            record.update(views.view_fields(self.tracker, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), msg.throttles,
+                                            bool(msg.parachute_deployed)))
+        with self._lock:
+            self.history.add(record)
         self.ch_state.log(record, log_time=t_ns)
         self.server.broadcast_time(t_ns)
         self.states_out += 1
@@ -353,6 +374,8 @@ class LiveBridge:
         if msg.kind == FlightEvent.INPUT_REJECTED:
             with self._lock:
                 self.refused["node." + (msg.detail.split(":", 1)[0] or "input")] += 1
+                if msg.detail.startswith("wind."):
+                    self.wind_W = self._wind_before
             self._status(f"refused by the flight: {msg.detail}", error=True)
 
     def _on_parameter_event(self, msg: Any) -> None:
@@ -367,6 +390,20 @@ class LiveBridge:
                 changed = True
         if changed:
             self._publish_parameters()
+
+    def _on_wind(self, msg: Any) -> None:
+        """A wind published by anyone (CLI, Foxglove, a page): the one in force unless refused."""
+        wind = [float(msg.vector.x), float(msg.vector.y), float(msg.vector.z)]
+        if not all(math.isfinite(v) for v in wind):
+            return  # refused by the simulator (wind.non_finite), and no JSON number
+        with self._lock:
+            self._wind_before, self.wind_W = self.wind_W, wind
+
+    def history_json(self) -> bytes:
+        """The graph fields of this epoch's states from t = 0 (:class:`views.History`), as JSON."""
+        with self._lock:
+            records = list(self.history.records)
+        return json.dumps(records).encode()
 
     def _on_diagnostics(self, msg: Any) -> None:
         paused = (sim_report(msg) or {}).get("paused")

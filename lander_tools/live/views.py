@@ -238,24 +238,35 @@ HISTORY_FIELDS = ("t", "altitude", "climb_rate", "euler_zxz", "throttles", "dema
 
 @dataclass
 class History:
-    """The graph fields of the states of one epoch, from t = 0, in at most ``capacity`` records:
-    when full, every other record is dropped and the spacing kept doubles, so the whole flight
-    stays drawn at an even resolution whatever its length (a page that opens late draws the
-    flight from its start)."""
+    """The graph fields of the states of one epoch, from t = 0, in at most ``capacity`` records.
+
+    Records are kept one per bin of ``spacing`` seconds of sim time (the first state in each);
+    when full, the spacing doubles and the records are binned again, so the whole flight stays
+    drawn at one resolution whatever its length (a page that opens late draws the flight from
+    its start): consecutive records are ``spacing`` apart to within one state interval.
+    """
 
     capacity: int = 4000
     records: list[dict[str, Any]] = field(default_factory=list)
-    spacing: float = 0.0  # [s] least sim time kept between two records
+    spacing: float = 0.0  # [s] bin width; 0: every state kept
+
+    def _bin(self, t: float) -> float:
+        return math.floor(t / self.spacing + 1e-9) if self.spacing > 0 else t
 
     def add(self, record: dict[str, Any]) -> None:
         if self.records and record["t"] < self.records[-1]["t"]:
             self.clear()  # a new epoch (reset)
-        if self.records and record["t"] - self.records[-1]["t"] < self.spacing:
+        if self.records and self._bin(record["t"]) == self._bin(self.records[-1]["t"]):
             return
         self.records.append({k: record.get(k) for k in HISTORY_FIELDS})
-        if len(self.records) > self.capacity:
-            self.records = self.records[::2]
-            self.spacing = max(2.0 * self.spacing, self.records[1]["t"] - self.records[0]["t"])
+        while len(self.records) > self.capacity:
+            span = self.records[-1]["t"] - self.records[0]["t"]
+            self.spacing = 2.0 * self.spacing if self.spacing > 0 else 2.0 * span / (len(self.records) - 1)
+            kept = [self.records[0]]
+            for r in self.records[1:]:
+                if self._bin(r["t"]) != self._bin(kept[-1]["t"]):
+                    kept.append(r)
+            self.records = kept
 
     def clear(self) -> None:
         self.records, self.spacing = [], 0.0

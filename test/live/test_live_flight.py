@@ -26,6 +26,7 @@ from lander_tools.cli import main as lander
 
 from .liveutil import (
     FoxgloveTestClient,
+    launch_chromium,
     start_bridge,
     start_flight,
     wait_flight_running,
@@ -341,26 +342,6 @@ def test_a_paused_flight_stays_paused_past_the_launchers_stall_watch_and_resumes
 
 # --- the student page in a real browser ----------------------------------------------------------
 
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
-
-
-def chromium_path() -> str:
-    """Debian's chromium (installed by `lander_tools/setup_env.py` on CI's machine). Absent: a loud
-    skip on a developer's machine, a failure in CI (CI=true), where the set-up must have put it."""
-    import os
-    import shutil
-
-    path = shutil.which("chromium") or shutil.which("chromium-browser")
-    if path is None:
-        reason = ("Debian's chromium is not installed: the student page's browser test CANNOT RUN here "
-                  "(install it: apt-get install chromium, or run ./dev as root once)")
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
-    return path
-
-
 def test_student_page_in_chromium_sets_the_demand_and_the_flight_follows(
         live: dict[str, Any], tmp_path: Path) -> None:
     import os
@@ -371,7 +352,7 @@ def test_student_page_in_chromium_sets_the_demand_and_the_flight_follows(
     c: FoxgloveTestClient = live["client"]
     url = f"http://127.0.0.1:{live['page_port']}/"
     with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS, headless=True)
+        browser = launch_chromium(pw)
         try:
             page = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
             errors: list[str] = []

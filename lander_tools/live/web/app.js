@@ -238,6 +238,8 @@ function axis(lo, hi, n = 4) {
   return { lo: a, hi: b, step, ticks };
 }
 window.axes = { niceStep, axis };
+// The sim time span of the graphs' samples [s] (the browser test: from t = 0 however late the page opened).
+window.samplesSpan = () => (samples.length ? [samples[0].t, samples[samples.length - 1].t] : null);
 
 const COLORS = ["#ffb070", "#70c0ff", "#90e090", "#e090e0", "#e0e070", "#f07070"];
 window.graphBoxes = {};       // per graph: where its title and legend entries were drawn (browser test)

@@ -156,7 +156,7 @@ class LiveBridge:
         import foxglove
         from foxglove import Capability
         from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
-        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
         if not max_rate > 0:
             raise ValueError(f"max_rate must be > 0 Hz, got {max_rate!r}")
@@ -234,7 +234,11 @@ class LiveBridge:
         self.link.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
         self.link.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
         self.link.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
-        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, reliable)
+        # Transient local: the verbs publish the wind latched, so a publish made just before this
+        # subscription matched the publisher still arrives.
+        latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, latched)
 
     # --- lifecycle ---------------------------------------------------------------------------
 

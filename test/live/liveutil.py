@@ -86,3 +86,11 @@ def chromium_path() -> str:
 def launch_chromium(pw: Any) -> Any:
     """Headless Debian Chromium through Playwright (never a downloaded browser)."""
     return pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS, headless=True)
+
+
+def console_errors(page: Any) -> list[str]:
+    """The page's uncaught exceptions and console errors (a failed load, a 404, ...), as they come."""
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    return errors

@@ -15,7 +15,6 @@ import re
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -26,7 +25,7 @@ from lander_ros.stamps import stamp_to_seconds
 from lander_tools.bagio import read_bag
 from lander_tools.live import replay
 
-from .liveutil import launch_chromium, wait_until
+from .liveutil import console_errors, launch_chromium, wait_until
 
 N_SYNTH = 41
 
@@ -88,13 +87,6 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     finally:
         fly.close()
     yield bag
-
-
-def console_errors(page: Any) -> list[str]:
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-    return errors
 
 
 def test_view_replays_a_recorded_flight_to_its_end(recorded: Path, tmp_path: Path) -> None:

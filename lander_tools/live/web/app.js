@@ -86,7 +86,8 @@ function ingest(rec) {
   view.update(rec);
 }
 
-const fmt = (v, d) => (v === null || v === undefined || !isFinite(v) ? "-" : v.toFixed(d));
+// Fixed decimals; a value that rounds to zero reads 0, never -0.
+const fmt = (v, d) => (v === null || v === undefined || !isFinite(v) ? "-" : (Math.abs(v) < 0.5 * 10 ** -d ? 0 : v).toFixed(d));
 const vec = (a, d, k = 1) => (a ? a.map((v) => fmt(k * v, d)).join(" ") : "-");
 
 // A field shows the value in force unless the user is typing in it.

@@ -73,6 +73,8 @@ AUTOPILOT_PARAMETERS = ("demand_altitude", "controller", "controller_params")
 #: among the subscriptions to wait for (lander_tools.fly.flight.expected_subscribers).
 SUBSCRIBED_TOPICS = ("/lander/state", "/lander/events", "/diagnostics")
 NODE_NAME = "lander_live"
+#: The simulator's world frame (its ``world_frame`` parameter's default): the frame of a wind it accepts.
+WORLD_FRAME = "mars"
 
 _SERVICE_FIELDS: dict[str, tuple[str, dict[str, Any]]] = {
     # name -> (ROS type, request fields and their JSON schema types)
@@ -170,9 +172,9 @@ class LiveBridge:
         self.tracker: views.SceneTracker | None = None
         self.history = views.History()
         #: The mean wind in force [m/s, world]: the scene's, then the last one published on
-        #: /lander/wind that the simulator did not refuse (a refusal restores the one before).
+        #: /lander/wind that the simulator accepts (finite, in the world frame); a reset restores
+        #: the scene's, as the simulator does.
         self.wind_W: list[float] | None = None
-        self._wind_before: list[float] | None = None
         self._scene_wind_W: list[float] | None = None
         self._latest: bytes | None = None
         self._latest_published = True
@@ -234,11 +236,13 @@ class LiveBridge:
         self.link.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
         self.link.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
         self.link.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
-        # Transient local: the verbs publish the wind latched, so a publish made just before this
-        # subscription matched the publisher still arrives.
+        # The wind in force: the verbs and the launcher publish it transient local, so a publish made
+        # just before this subscription matched still arrives (a verb's publisher lives ~0.5 s); the
+        # volatile subscription hears any other publisher (a transient local one needs its like).
         latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, latched)
+        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, reliable)
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -378,8 +382,6 @@ class LiveBridge:
         if msg.kind == FlightEvent.INPUT_REJECTED:
             with self._lock:
                 self.refused["node." + (msg.detail.split(":", 1)[0] or "input")] += 1
-                if msg.detail.startswith("wind."):
-                    self.wind_W = self._wind_before
             self._status(f"refused by the flight: {msg.detail}", error=True)
 
     def _on_parameter_event(self, msg: Any) -> None:
@@ -398,10 +400,10 @@ class LiveBridge:
     def _on_wind(self, msg: Any) -> None:
         """A wind published by anyone (CLI, Foxglove, a page): the one in force unless refused."""
         wind = [float(msg.vector.x), float(msg.vector.y), float(msg.vector.z)]
-        if not all(math.isfinite(v) for v in wind):
-            return  # refused by the simulator (wind.non_finite), and no JSON number
+        if msg.header.frame_id not in ("", WORLD_FRAME) or not all(math.isfinite(v) for v in wind):
+            return  # the simulator refuses it (wind.frame, wind.non_finite): not in force
         with self._lock:
-            self._wind_before, self.wind_W = self.wind_W, wind
+            self.wind_W = wind
 
     def history_json(self) -> bytes:
         """The graph fields of this epoch's states from t = 0 (:class:`views.History`), as JSON."""

@@ -13,7 +13,7 @@ const RAD2DEG = 180 / Math.PI;
 const $ = (id) => document.getElementById(id);
 let samples = [];             // graph records of this epoch, from t = 0
 // Page-side counters, read by the browser test: states received and when (wall ms).
-window.liveStats = { states: 0, times: [], last: null, messages: [] };
+window.liveStats = { states: 0, times: [], last: null, messages: [], frames: 0 };
 let lastRecord = null;
 let view = null;
 let manualThrottle = 0.0, manualTilt = 0.0;
@@ -298,9 +298,18 @@ function plot(canvas, title, series, unit) {
   });
 }
 
-function draw() {
+const GRAPH_PERIOD_MS = 100;  // the graphs are redrawn 10 times a second, the 3-D view every frame
+let lastGraphs = -Infinity;
+
+function draw(now) {
+  window.liveStats.frames += 1;
   advanceReplay();
   view.render();
+  if (now - lastGraphs >= GRAPH_PERIOD_MS) { lastGraphs = now; drawGraphs(); }
+  requestAnimationFrame(draw);
+}
+
+function drawGraphs() {
   plot($("g-altitude"), "altitude", [
     { name: "altitude", get: (r) => r.altitude },
     { name: "demand", get: (r) => r.demand_altitude, color: "#5f5" }], "m");
@@ -308,7 +317,6 @@ function draw() {
   plot($("g-attitude"), "ZXZ Euler angles", ["phi", "theta", "psi"].map((n, i) => ({ name: n, get: (r) => r.euler_zxz[i] * RAD2DEG })), "deg");
   const n = lastRecord ? lastRecord.throttles.length : 0;
   plot($("g-throttle"), "throttles", Array.from({ length: n }, (_, i) => ({ name: `#${i + 1}`, get: (r) => r.throttles[i] })), "0..1");
-  requestAnimationFrame(draw);
 }
 
 start().catch((e) => say(`cannot start: ${e.message}`, true));

@@ -37,8 +37,6 @@ TOUCHDOWNS = {FlightEvent.LANDED: "safe", FlightEvent.HARD_LANDING: "hard", Flig
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: Latched: an autopilot (re)started mid-flight still gets the demand in force.
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-RELIABLE_LATCHED = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def event_values(msg: Any) -> dict[str, float]:
@@ -121,8 +119,7 @@ class Supervisor:
         sim's parameters only when the flight has an autopilot)."""
         n = self.node
         self.pub_demand = n.create_publisher(Float64, "/lander/demand_altitude", LATCHED)
-        # Transient local, as the verbs' wind: a live bridge subscribing so shows the wind in force.
-        self.pub_wind = n.create_publisher(Vector3Stamped, "/lander/wind", RELIABLE_LATCHED)
+        self.pub_wind = n.create_publisher(Vector3Stamped, "/lander/wind", RELIABLE)
         self.pub_throttle = n.create_publisher(ThrottleCommand, "/lander/throttle", RELIABLE)
         self.cli_reset: Any = n.create_client(Reset, "/lander/reset")
         self.cli_resume: Any = n.create_client(Trigger, "/lander/resume")

@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import signal
 import sys
 import threading
@@ -73,8 +72,6 @@ AUTOPILOT_PARAMETERS = ("demand_altitude", "controller", "controller_params")
 #: among the subscriptions to wait for (lander_tools.fly.flight.expected_subscribers).
 SUBSCRIBED_TOPICS = ("/lander/state", "/lander/events", "/diagnostics")
 NODE_NAME = "lander_live"
-#: The simulator's world frame (its ``world_frame`` parameter's default): the frame of a wind it accepts.
-WORLD_FRAME = "mars"
 
 _SERVICE_FIELDS: dict[str, tuple[str, dict[str, Any]]] = {
     # name -> (ROS type, request fields and their JSON schema types)
@@ -158,7 +155,7 @@ class LiveBridge:
         import foxglove
         from foxglove import Capability
         from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
-        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
         if not max_rate > 0:
             raise ValueError(f"max_rate must be > 0 Hz, got {max_rate!r}")
@@ -171,9 +168,9 @@ class LiveBridge:
         self.params: dict[str, Any] = {"demand_altitude": None, "controller": "", "controller_params": ""}
         self.tracker: views.SceneTracker | None = None
         self.history = views.History()
-        #: The mean wind in force [m/s, world]: the scene's, then the last one published on
-        #: /lander/wind that the simulator accepts (finite, in the world frame); a reset restores
-        #: the scene's, as the simulator does.
+        #: The mean wind in force [m/s, world]: the scene's until the simulator reports its own
+        #: (``mean_wind_W`` in its /diagnostics, sent at once when a wind is accepted); a reset
+        #: restores the scene's, as the simulator does.
         self.wind_W: list[float] | None = None
         self._scene_wind_W: list[float] | None = None
         self._latest: bytes | None = None
@@ -223,7 +220,6 @@ class LiveBridge:
         # twice the publishing rate cap. Every state is shown while they come slower than that.
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import Vector3Stamped
         from rcl_interfaces.msg import ParameterEvent
 
         self._state_node = rclpy.create_node(NODE_NAME + "_state", context=self.link.context,
@@ -236,13 +232,6 @@ class LiveBridge:
         self.link.create_subscription(FlightEvent, "/lander/events", self._on_event, reliable)
         self.link.create_subscription(ParameterEvent, "/parameter_events", self._on_parameter_event, reliable)
         self.link.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, reliable)
-        # The wind in force: the verbs and the launcher publish it transient local, so a publish made
-        # just before this subscription matched still arrives (a verb's publisher lives ~0.5 s); the
-        # volatile subscription hears any other publisher (a transient local one needs its like).
-        latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, latched)
-        self.link.create_subscription(Vector3Stamped, "/lander/wind", self._on_wind, reliable)
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -397,14 +386,6 @@ class LiveBridge:
         if changed:
             self._publish_parameters()
 
-    def _on_wind(self, msg: Any) -> None:
-        """A wind published by anyone (CLI, Foxglove, a page): the one in force unless refused."""
-        wind = [float(msg.vector.x), float(msg.vector.y), float(msg.vector.z)]
-        if msg.header.frame_id not in ("", WORLD_FRAME) or not all(math.isfinite(v) for v in wind):
-            return  # the simulator refuses it (wind.frame, wind.non_finite): not in force
-        with self._lock:
-            self.wind_W = wind
-
     def history_json(self) -> bytes:
         """The graph fields of this epoch's states from t = 0 (:class:`views.History`), as JSON."""
         with self._lock:
@@ -412,9 +393,14 @@ class LiveBridge:
         return json.dumps(records).encode()
 
     def _on_diagnostics(self, msg: Any) -> None:
-        paused = (sim_report(msg) or {}).get("paused")
+        report = sim_report(msg) or {}
+        paused = report.get("paused")
         if paused is not None:
             self.paused = paused.lower() in ("true", "1", "yes")
+        wind = views.parse_wind(report.get("mean_wind_W"))
+        if wind is not None:
+            with self._lock:
+                self.wind_W = wind
 
     def _publish_parameters(self) -> None:
         self.server.publish_parameter_values(self.parameter_list())

@@ -32,9 +32,6 @@ CALL_TIMEOUT = 10.0
 #: Wall seconds to watch for the simulator's rejection of a published input (it answers within a
 #: callback pass, ~1 ms when idle; the window covers a loaded 2-core machine).
 REJECT_WINDOW = 0.5
-#: Longest wait [s], once the simulator has matched a publisher, for the topic's other subscribers
-#: in the graph (a live bridge) to match it too.
-ALL_MATCHED_WAIT = 1.0
 SIM_NODE = "/lander_sim"
 AUTOPILOT_NODE = "/autopilot"
 
@@ -249,17 +246,13 @@ class FlightLink:
 
     # --- topics -------------------------------------------------------------------------------
 
-    def _publisher(self, msg_type: Any, topic: str, latched: bool = False) -> Any:
-        """Reliable; ``latched``: transient local, depth 1 (a subscriber matched a moment after the
-        publish, such as a live bridge showing the value in force, still gets the last one)."""
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    def _publisher(self, msg_type: Any, topic: str) -> Any:
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
 
         with self._lock:
             if topic not in self._pubs:
-                qos = (QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                                  durability=DurabilityPolicy.TRANSIENT_LOCAL) if latched
-                       else QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
-                self._pubs[topic] = self.node.create_publisher(msg_type, topic, qos)
+                self._pubs[topic] = self.node.create_publisher(
+                    msg_type, topic, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
             return self._pubs[topic]
 
     def watch_rejections(self) -> None:
@@ -285,11 +278,6 @@ class FlightLink:
         while pub.get_subscription_count() == 0:
             if time.monotonic() > deadline:
                 raise NoFlight(f"nobody subscribes to {pub.topic_name} within {timeout:g} s (is a flight running?)")
-            time.sleep(0.01)
-        # Then every subscriber the graph shows (a live bridge shows the value in force on its
-        # pages): the topic is volatile, a subscriber matched after the publish never gets it.
-        settle = min(deadline, time.monotonic() + ALL_MATCHED_WAIT)
-        while pub.get_subscription_count() < self.node.count_subscribers(pub.topic_name) and time.monotonic() < settle:
             time.sleep(0.01)
         if self._event_sub is not None:
             while self._event_sub.get_publisher_count() == 0 and time.monotonic() < deadline:
@@ -330,7 +318,7 @@ class FlightLink:
         msg.vector.x, msg.vector.y, msg.vector.z = (float(c) for c in wind_W)
         if wait:
             self.watch_rejections()
-        return self._publish_checked(self._publisher(Vector3Stamped, "/lander/wind", latched=True), msg, "wind", wait)
+        return self._publish_checked(self._publisher(Vector3Stamped, "/lander/wind"), msg, "wind", wait)
 
     def publish_throttles(self, throttles: Sequence[float], wait: bool = False) -> Outcome:
         """Manual throttles (0..1 per thruster) on ``/lander/throttle`` with ``state_sequence`` 0

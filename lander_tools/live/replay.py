@@ -3,8 +3,9 @@
 Each ``/lander/state`` of the bag becomes the record the live bridge would have sent for it
 (:func:`lander_tools.live.views.state_record` and :func:`~lander_tools.live.views.view_fields`,
 the same surface frame and look), with the demand altitude and controller of the last
-``/autopilot/status`` at or before its stamp and the mean wind of the last ``/lander/wind``
-(the scene's before any). The vehicle's look comes from the scene named in the bag's metadata;
+``/autopilot/status`` at or before its stamp and the mean wind in force: the simulator's
+``mean_wind_W`` in its last ``/diagnostics`` report, or in a bag without those reports the last
+finite ``/lander/wind`` (the scene's before any). The vehicle's look comes from the scene named in the bag's metadata;
 a bag without one (an MCAP cut short) is drawn with :data:`DEFAULT_LOOK_SCENE`'s.
 
 Plain Python (rosbags, no rclpy): see :mod:`lander_tools.bagio`.
@@ -17,6 +18,7 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
+from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
 from lander_tools.live import views
 
@@ -48,7 +50,7 @@ def load(path: str | os.PathLike[str]) -> Replay:
     from lander_sim.scenes import load_scene
     from lander_tools.bagio import BagError, read_bag
 
-    bag = read_bag(path, ["/lander/state", "/autopilot/status", "/lander/wind"])
+    bag = read_bag(path, ["/lander/state", "/autopilot/status", "/lander/wind", "/diagnostics"])
     if "/lander/state" not in bag:
         raise BagError(f"{path}: no /lander/state in this bag: nothing to replay")
     name, note = bag.meta.get("scene", ""), ""
@@ -64,7 +66,12 @@ def load(path: str | os.PathLike[str]) -> Replay:
             status.append((float(m.demand_altitude), str(m.controller)))
     wind_t: list[float] = []
     winds: list[list[float]] = []
-    if "/lander/wind" in bag:
+    for m in bag.topics["/diagnostics"].messages if "/diagnostics" in bag else []:
+        w = views.parse_wind((sim_report(m) or {}).get("mean_wind_W"))
+        if w is not None:
+            wind_t.append(stamp_to_seconds(m.header.stamp))
+            winds.append(w)
+    if not winds and "/lander/wind" in bag:
         for m in bag.topics["/lander/wind"].messages:
             w = [float(m.vector.x), float(m.vector.y), float(m.vector.z)]
             if all(math.isfinite(v) for v in w):  # the simulator refuses the others

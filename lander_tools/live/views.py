@@ -71,6 +71,16 @@ def state_record(msg: Any, demand_altitude: float | None, controller: str, pause
     }
 
 
+def parse_wind(text: str | None) -> list[float] | None:
+    """The simulator's ``mean_wind_W`` diagnostics value (``"x y z"`` [m/s], world frame) as a list;
+    None when absent or not three finite numbers."""
+    try:
+        wind = [float(v) for v in (text or "").split()]
+    except ValueError:
+        return None
+    return wind if len(wind) == 3 and all(math.isfinite(v) for v in wind) else None
+
+
 #: JSON schema of ``/live/state`` (what Foxglove's plot panel offers as fields).
 STATE_SCHEMA: dict[str, Any] = {
     "type": "object",

@@ -113,15 +113,15 @@ def test_view_replays_a_recorded_flight_to_its_end(recorded: Path, tmp_path: Pat
                 assert drawn["trail"] == len(states)  # every state of the flight drawn in the trail
                 np.testing.assert_allclose(drawn["position"], shown["position_S"], atol=1e-3)
                 np.testing.assert_allclose(drawn["z_axis"], shown["up_S"], atol=1e-6)
-                # The slider goes back: the view shows the flight up to that state only.
-                page.eval_on_selector("#replay-slider", "(s) => { s.value = '10'; s.dispatchEvent(new Event('input')); }")
-                back = page.evaluate("[window.liveStats.last.t, window.view3d.state().trail]")
-                assert back == [pytest.approx(stamp_to_seconds(states[10].header.stamp), abs=1e-9), 11]
-                page.wait_for_timeout(300)
+                page.wait_for_timeout(300)  # let the graphs (10 Hz) draw the end for the picture
                 shot = tmp_path / "view-replay.png"
                 page.screenshot(path=str(shot))
                 if os.environ.get("LANDER_DOCS_SCREENSHOT"):
                     shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
+                # The slider goes back: the view shows the flight up to that state only.
+                page.eval_on_selector("#replay-slider", "(s) => { s.value = '10'; s.dispatchEvent(new Event('input')); }")
+                back = page.evaluate("[window.liveStats.last.t, window.view3d.state().trail]")
+                assert back == [pytest.approx(stamp_to_seconds(states[10].header.stamp), abs=1e-9), 11]
                 assert errors == []
             finally:
                 browser.close()

@@ -247,7 +247,7 @@ window.graphBoxes = {};       // per graph: where its title and legend entries w
 
 function plot(canvas, title, series, unit) {
   const ctx = canvas.getContext("2d");
-  const W = canvas.width, H = canvas.height, L = 56, B = 30, T = 22;
+  const W = canvas.width, H = canvas.height, L = 56, B = 30, T = 22, R = 22;
   ctx.clearRect(0, 0, W, H);
   ctx.font = "12px sans-serif"; ctx.textBaseline = "alphabetic";
   const head = `${title} [${unit}]`;
@@ -270,11 +270,11 @@ function plot(canvas, title, series, unit) {
   for (const s of series) for (let i = 0; i < samples.length; i += stride) { const v = s.get(samples[i]); if (v !== null && v !== undefined && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }
   if (!isFinite(lo)) return;
   const ya = axis(lo, hi), xa = axis(Math.min(0, t0), t1, 6);
-  const x = (t) => L + (W - L - 10) * (t - xa.lo) / (xa.hi - xa.lo);
+  const x = (t) => L + (W - L - R) * (t - xa.lo) / (xa.hi - xa.lo);
   const y = (v) => T + (H - B - T) * (ya.hi - v) / (ya.hi - ya.lo);
   ctx.strokeStyle = "#2a2d35"; ctx.fillStyle = "#aaa"; ctx.textAlign = "right";
   for (const tk of ya.ticks) {
-    ctx.beginPath(); ctx.moveTo(L, y(tk.value)); ctx.lineTo(W - 10, y(tk.value)); ctx.stroke();
+    ctx.beginPath(); ctx.moveTo(L, y(tk.value)); ctx.lineTo(W - R, y(tk.value)); ctx.stroke();
     ctx.fillText(tk.label, L - 4, y(tk.value) + 4);
   }
   ctx.textAlign = "center";

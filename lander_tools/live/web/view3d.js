@@ -39,7 +39,8 @@ function clear(pl) { pl.n = 0; pl.geom.setDrawRange(0, 0); }
 export class View3D {
   constructor(canvas) {
     this.canvas = canvas;
-    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+    // No multisampling: in a software renderer (headless, SwiftShader) it costs more than the view gains.
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: false, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(1);
     this.scene = new THREE.Scene();
     this.scene.background = new THREE.Color(0x0b0d12);

@@ -22,6 +22,7 @@ from tools.synth import write_flight_bag
 
 import rosutil
 from lander_ros.stamps import stamp_to_seconds
+from lander_sim.physics.rotation import body_to_world
 from lander_tools.bagio import read_bag
 from lander_tools.live import replay
 
@@ -160,6 +161,38 @@ def test_the_drawn_body_turns_with_the_recorded_attitude(tmp_path: Path) -> None
                 centre = (slice(h // 4, 3 * h // 4), slice(w // 4, 3 * w // 4))  # where the body is drawn
                 changed = np.mean(np.abs(upright[centre] - turned[centre]) > 16)
                 assert changed > 0.002, changed  # the body's pixels (~1 % of the centre) moved
+                assert errors == []
+            finally:
+                browser.close()
+    finally:
+        view.close()
+
+
+def test_far_from_the_ground_the_view_shows_the_planet_and_the_orbit_at_scale(tmp_path: Path) -> None:
+    """A descent from 150 km to 30 km (above the 20 km of PLANET_VIEW_ALTITUDE all along): the view
+    draws the planet frame in km, the lander at its world position / 1000, every state in the orbit
+    line, the body in its world attitude (z axis = q_WB applied to z)."""
+    from playwright.sync_api import sync_playwright
+
+    t = np.linspace(0.0, 600.0, 61)
+    write_flight_bag(tmp_path / "high", t, 150e3 - 200.0 * t, np.full_like(t, -200.0), meta={"scene": "hover"})
+    view, url = start_view(tmp_path / "high")
+    try:
+        with sync_playwright() as pw:
+            browser = launch_chromium(pw)
+            try:
+                page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
+                errors = console_errors(page)
+                page.goto(url)
+                page.wait_for_function("window.replay && window.replay.records.length > 0", timeout=30_000)
+                page.eval_on_selector("#replay-slider", "(s) => { s.value = s.max; s.dispatchEvent(new Event('input')); }")
+                rec, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
+                assert drawn["view"] == "planet" and rec["altitude"] == pytest.approx(30e3)
+                np.testing.assert_allclose(drawn["position"], np.asarray(rec["position_W"]) * 1e-3, rtol=1e-6)
+                x, y, z, w = rec["q_WB"]
+                z_W = body_to_world(np.array([w, x, y, z]), np.array([0.0, 0.0, 1.0]))
+                np.testing.assert_allclose(drawn["z_axis"], z_W, atol=1e-6)
+                assert page.evaluate("window.view3d.orbit.n") == len(t)
                 assert errors == []
             finally:
                 browser.close()

@@ -53,7 +53,12 @@ def test_replay_records_are_the_bags_states_with_the_demand_in_force_and_the_att
         assert rec["tilt"] == pytest.approx(abs(math.pi / 2 - angle), abs=1e-9)
         assert rec["demand_altitude"] == (500.0 if rec["t"] < 2.0 - 1e-9 else 520.0)
         assert len(rec["plumes_B"]) == 3  # the thruster at throttle 0 has no plume
+    assert not any(rec["fixed_pivot"] for rec in rep.records)
     json.dumps(rep.page_json(), allow_nan=False)  # what the page gets is plain JSON
+    # A rotor scene's body turns about a fixed pivot: the view draws its z axis track.
+    write_flight_bag(tmp_path / "rotor", np.array([0.0, 0.1]), np.full(2, 500.0), np.zeros(2),
+                     meta={"scene": "rotor-quaternion"})
+    assert all(rec["fixed_pivot"] for rec in replay.load(tmp_path / "rotor").records)
     with pytest.raises(ValueError, match="not found"):
         replay.load(tmp_path / "missing")
 

@@ -69,7 +69,13 @@ from lander_autopilot.ros.config import (
     parse_controller_params,
     scene_autopilot,
 )
-from lander_autopilot.ros.loop_stats import LoopStats, ReportClock, control_status, controller_status
+from lander_autopilot.ros.loop_stats import (
+    LoopStats,
+    ReportClock,
+    control_status,
+    controller_status,
+    format_gains,
+)
 from lander_autopilot.ros.slot import ControllerSlot, OutputError, build_choice
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import SwitchController
@@ -177,8 +183,12 @@ class AutopilotNode(Node):
         self._reports = ReportClock()
         self._diag = DiagnosticArray()
         self.create_timer(_WATCHDOG_PERIOD, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        #: The flying law's gains as one line, made once per controller installed (a law's gains
+        #: are fixed at its construction): the control report carries it every second.
+        self._gains_line = gains = self._gains_text()
         self.get_logger().info(
             f"controller {self.slot.name!r} for scene {loaded.name!r}, demand altitude {self.slot.demand.altitude} m"
+            + (f", gains {gains}" if gains else "")
         )
 
     def run(self, executor: SingleThreadedExecutor) -> None:
@@ -397,6 +407,7 @@ class AutopilotNode(Node):
         if choice is not None:
             seq = self.slot.last_sequence
             old = self.slot.swap(choice)
+            self._gains_line = self._gains_text()
             self._loop.reset(keep_period=True)  # the figures are the installed controller's
             detail = (f"controller {old.name!r} -> {choice.name!r} after state {seq} "
                       f"(parameters {dump_controller_params(choice.params) or '{}'}, scene {choice.scene!r})")
@@ -469,7 +480,9 @@ class AutopilotNode(Node):
         """One ``DiagnosticArray``: the control loop's status, then the controller's own figures
         when its ``diagnostics()`` gives any (a failing one is reported, never raised)."""
         name = self.slot.name
-        statuses = [(f"{NODE_NAME}: control", control_status(self._loop.summary(), name, self.slot.mode))]
+        statuses = [(f"{NODE_NAME}: control", control_status(self._loop.summary(), name, self.slot.mode,
+                                                             self._gains_line,
+                                                             dump_controller_params(self.slot.choice.params)))]
         try:
             figures = dict(self.slot.choice.controller.diagnostics())
             own = controller_status(figures) if figures else None
@@ -480,6 +493,15 @@ class AutopilotNode(Node):
         convert.fill_diagnostics(self._diag, stamp=stamp, hardware_id=self.get_fully_qualified_name(),
                                  statuses=statuses)
         self._pub_diag.publish(self._diag)
+
+    def _gains_text(self) -> str:
+        """The flying law's gains in force as one line ("" for a law that names none; a failing
+        ``gains()`` of a plug-in is said in the line, never raised)."""
+        try:
+            gains = getattr(self.slot.choice.controller, "gains", dict)()
+            return format_gains(gains)
+        except Exception as exc:  # noqa: BLE001 - a plug-in's gains() must not take the node down
+            return f"gains() failed: {type(exc).__name__}: {exc}"
 
     def _publish_event(self, kind: int, detail: str, values: list[float], stamp=None) -> None:
         ev = FlightEvent()

@@ -1,9 +1,12 @@
-"""Metrics and plots of recorded flights (no rclpy; bags are read with :mod:`lander_tools.bagio`).
+"""Metrics of recorded flights (no rclpy; bags are read with :mod:`lander_tools.bagio`).
 
 :class:`Flight` turns a bag into numpy arrays (simulation time, world-frame
 position/velocity, attitude, body rates, throttles, demand altitude, events).
-:func:`metrics` computes the numbers users compare flights by, :func:`write_plots`
-draws the standard figures to PNG and :func:`compare` puts several flights side by side.
+:func:`metrics` computes the numbers users compare flights by, :func:`table` and :func:`to_json`
+put several flights side by side; :mod:`lander_tools.analysis_plots` draws the standard figures.
+
+A metric is ``None`` (printed "n/a") where the flight's scene cannot produce it; the rules, shared
+with the flight summary of ``lander fly``, are :mod:`lander_tools.metrics_fit`'s.
 
 Metric definitions (all SI):
 
@@ -13,7 +16,8 @@ Metric definitions (all SI):
   ``|v_W|`` of the first state no longer flying.
 * ``touchdown_*``: the touchdown event's figures: ``touchdown_class`` (safe / hard / crash against
   the scene's ``touchdown`` limits), descent rate and ground speed [m/s], tilt [deg], fuel left [kg].
-* ``fuel_used``: first minus last ``fuel_mass`` [kg].
+* ``fuel_used``: first minus last ``fuel_mass`` [kg]; n/a for a vehicle without thrusters.
+* ``final_altitude``: the last state's altitude [m]; n/a for a fixed pivot.
 * Demand timeline: the demand altitude in force as ``/autopilot/status`` reports it (first
   value and each change, timed at the state the autopilot first answered with it), so the
   scene's demand counts too; bags without that field fall back to ``/lander/demand_altitude``.
@@ -22,7 +26,10 @@ Metric definitions (all SI):
   its segment, which ends at the next change or at the touchdown. A demand of 0 m or less asks
   the autopilot to land (the landing and de-orbit laws), not to hover: a flight that lands on
   demand is measured on the hover before it, and a landing-only flight has no step response
-  (its figures are the touchdown's). In the step's segment,
+  (its figures are the touchdown's). A law that reports its mode (the guided descents: landing,
+  de-orbit) hovers only in :data:`HOVER_MODE`: the segment starts at its first status in that
+  mode, and a flight that never got there (a de-orbit still in orbit) has no step response.
+  In the step's segment,
   ``settling_time`` is the time after the step from which ``|h - h_d|`` stays inside
   ``band = max(2 % of the step, band_min)`` (:func:`lander_tools.sweep.metrics.settling_time`,
   the sweeps' definition; ``None`` where it never settles); ``overshoot`` is the largest excursion
@@ -34,22 +41,27 @@ Metric definitions (all SI):
   state. ``band_min`` first, because 2 % of a de-orbit's step is no hover measure: from scenario
   0's orbit (a 677 km step) it is 13.5 km, and a hover of 37 s before a landing demand put 2.4 s
   of the braking in the tail (1.9 m mean, 48.7 m largest, for a hover held within 1 m).
-* ``saturation_time``: simulation time the autopilot reported ``saturated`` (or, without
-  ``/autopilot/status``, time with any throttle at 0 or 1 while others are not).
-* ``gimbal_lock_events``: GIMBAL_LOCK events, else rising edges of the state's flag.
-* ``quaternion_norm_drift``: ``max ||q| - 1|`` of the published attitude.
+* ``saturation_time``: simulation time the autopilot reported ``saturated`` outside a landing
+  law's :data:`COAST_MODE` (or, without ``/autopilot/status``, time with any throttle at 0 or 1
+  while others are not); n/a without thrusters or without an autopilot.
+* ``gimbal_lock_events``: the simulator's GIMBAL_LOCK events, as ``lander fly`` counts them
+  (:func:`lander_tools.metrics_fit.gimbal_lock_count`); for a bag without ``/lander/events``, the
+  entries into the state's flag in Euler mode (:func:`~lander_tools.metrics_fit.gimbal_lock_entries`),
+  n/a if the scene is unknown too.
+* ``quaternion_norm_drift``: ``max ||q| - 1|`` of the published attitude; n/a for an Euler-mode
+  scene, whose quaternion is made from the angles for publishing, not integrated.
 * ``angular_momentum_drift``: relative drift of the world-frame angular momentum
-  ``L_W = R(q)^T I omega_B`` (dynamics reference eq 2, 13) over spans where every
-  throttle is zero; conserved for torque-free flight, so any drift is integration
-  error. ``I = m diag(k^2)`` with the lander's radii of gyration unless the scene's
-  vehicle (from the bag's ``scene`` metadata) says otherwise.
+  ``L_W = R(q)^T I omega_B`` (dynamics reference eq 2, 13), ``max |L_W - L_W(t0)| / |L_W(t0)|``
+  over each torque-free span (:func:`lander_tools.metrics_fit.torque_free`: no thrust, stabiliser,
+  chute, ground contact or torquing scene model), the worst span; conserved there, so any drift
+  is integration error. n/a where no state is torque-free or the scene is unknown.
+  ``I = m diag(k^2)`` with the lander's radii of gyration unless the scene's vehicle says otherwise.
 """
 from __future__ import annotations
 
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -57,8 +69,16 @@ import numpy as np
 from lander_ros.stamps import stamp_to_seconds
 from lander_sim.physics import constants
 from lander_sim.physics.rotation import quat_to_matrix
-from lander_tools import plotstyle as ps
 from lander_tools.bagio import Bag, BagError
+from lander_tools.metrics_fit import (
+    SceneFacts,
+    altitude_applies,
+    fuel_applies,
+    gimbal_lock_count,
+    gimbal_lock_entries,
+    scene_facts,
+    torque_free,
+)
 from lander_tools.sweep.metrics import settled_index, settling_time
 
 # FlightEvent kinds (lander_interfaces/msg/FlightEvent.msg); duplicated as plain ints so that
@@ -95,6 +115,15 @@ class Flight:
     status_saturated: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     meta: dict[str, str] = field(default_factory=dict)
     parachute: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  #: (N,) chute out
+    stabiliser: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  #: (N,) stabiliser on
+    #: the autopilot's mode at each status (the guided descent laws' phases; "" for the others)
+    status_mode: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=str))
+    events_recorded: bool = True  #: the bag recorded /lander/events (an empty event list is then a fact)
+
+    @property
+    def facts(self) -> SceneFacts | None:
+        """What the flight's scene has (:mod:`lander_tools.metrics_fit`), ``None`` if unknown."""
+        return scene_facts(self.meta)
 
     @classmethod
     def from_bag(cls, bag: Bag, name: str | None = None) -> Flight:
@@ -131,12 +160,15 @@ class Flight:
             sequence=s["sequence"].astype(np.int64),
             meta=dict(bag.meta),
             parachute=s.get("parachute_deployed", np.zeros(len(s["t"]))).astype(bool),
+            stabiliser=s.get("stabiliser_on", np.zeros(len(s["t"]))).astype(bool),
+            events_recorded="/lander/events" in bag.topics,
         )
         for m in bag.messages("/lander/events"):
             f.events.append((stamp_to_seconds(m.header.stamp), int(m.kind), m.detail, list(m.values)))
         if "/autopilot/status" in bag:
             st = bag.series("/autopilot/status")
             f.status_t, f.status_saturated = st["t"], st["saturated"].astype(bool)
+            f.status_mode = np.asarray(st["mode"], dtype=str) if "mode" in st else np.full(len(st["t"]), "")
             if "demand_altitude" in st:  # bags recorded before the status carried it have no column
                 f.demand_t, f.demand = _demand_changes(st["t"], st["demand_altitude"].astype(float), end)
         if not len(f.demand) and "/lander/demand_altitude" in bag:
@@ -185,17 +217,17 @@ class Metrics:
     states: int
     outcome: str
     touchdown_speed: float | None
-    fuel_used: float
-    final_altitude: float
+    fuel_used: float | None
+    final_altitude: float | None
     demand_altitude: float | None
     step_size: float | None
     settling_time: float | None
     overshoot_percent: float | None
     steady_state_error: float | None
     hover_error_max: float | None
-    saturation_time: float
-    gimbal_lock_events: int
-    quaternion_norm_drift: float
+    saturation_time: float | None
+    gimbal_lock_events: int | None
+    quaternion_norm_drift: float | None
     angular_momentum_drift: float | None
     controller_switches: int
     final_spin_rate: float
@@ -271,6 +303,44 @@ def _hover_step(demand: np.ndarray, demand_t: np.ndarray, t_down: float) -> int 
     return int(changes[-1]) if len(changes) else int(np.argmax(hover))
 
 
+#: The autopilot's mode while a guided descent law (de-orbit: lander_autopilot.controllers.deorbit.phases)
+#: holds its hover; its other modes fly a descent towards the demand, not a step to it.
+HOVER_MODE = "hover"
+#: The landing laws' unpowered mode: they ask for no thrust by design, so a command clipped at
+#: zero there is the law's, not a limit reached (lander_autopilot.controllers.landing.MODES).
+COAST_MODE = "coast"
+
+
+def _hovering_from(flight: Flight, t0: float, t1: float) -> float | None:
+    """When the lander starts hovering on the demand set at ``t0`` (segment ends ``t1``): at once for
+    laws that report no mode (the hover laws), else at the first status in :data:`HOVER_MODE`
+    (the guided descents report their phase); ``None`` if that never came within the segment."""
+    modes = flight.status_mode
+    if not len(modes) or not np.any(modes != ""):
+        return t0
+    hover = (modes == HOVER_MODE) & (flight.status_t >= t0) & (flight.status_t < t1)
+    return float(flight.status_t[np.argmax(hover)]) if hover.any() else None
+
+
+def _saturation_time(flight: Flight, n_thrusters: int) -> float | None:
+    """Time [s] the autopilot reported its command clipped (outside a coast, :data:`COAST_MODE`);
+    without its status, the time with some throttles at a limit and others not. ``None`` where
+    nothing can saturate: no thrusters, or no autopilot (bag metadata ``controller: none``)."""
+    if n_thrusters == 0 or flight.meta.get("controller") == "none":
+        return None
+    if len(flight.status_t) > 1:
+        dt = np.diff(flight.status_t)
+        clipped = flight.status_saturated.copy()
+        if len(flight.status_mode) == len(clipped):
+            clipped &= flight.status_mode != COAST_MODE
+        return float(np.sum(dt[clipped[:-1]]))
+    if len(flight.t) > 1 and flight.throttles.size:
+        thr = flight.throttles
+        at_limit = np.any((thr <= 0.0) | (thr >= 1.0), axis=1) & ~np.all(thr <= 0.0, axis=1)
+        return float(np.sum(np.diff(flight.t)[at_limit[:-1]]))
+    return 0.0
+
+
 def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -> Metrics:
     """Compute :class:`Metrics` of a flight (definitions in the module docstring).
 
@@ -303,34 +373,36 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     t_down = touchdown_time if touchdown_time is not None else math.inf
     ks = _hover_step(flight.demand, flight.demand_t, t_down)
     if ks is not None:
-        t0, hd = float(flight.demand_t[ks]), float(flight.demand[ks])
+        hd = float(flight.demand[ks])
         t1 = min(float(flight.demand_t[ks + 1]) if ks + 1 < len(flight.demand) else math.inf, t_down)
-        # The step is measured from where the lander actually was when the demand changed.
-        h0 = float(np.interp(t0, t, flight.altitude))
-        step = hd - h0
-        seg = t <= t1
-        settling, overshoot, sse, hover_max = _step_response(
-            t[seg], flight.altitude[seg], t0, h0, hd, band_min, tail_fraction)
+        # A guided descent that never reached its hover has no step to measure (None).
+        t0 = _hovering_from(flight, float(flight.demand_t[ks]), t1)
+        if t0 is not None:
+            # The step is measured from where the lander actually was when the demand changed
+            # (after a guided descent: when its hover began).
+            h0 = float(np.interp(t0, t, flight.altitude))
+            step = hd - h0
+            seg = t <= t1
+            settling, overshoot, sse, hover_max = _step_response(
+                t[seg], flight.altitude[seg], t0, h0, hd, band_min, tail_fraction)
 
-    # Saturation time.
-    if len(flight.status_t) > 1:
-        dt = np.diff(flight.status_t)
-        sat_time = float(np.sum(dt[flight.status_saturated[:-1]]))
-    elif n > 1 and flight.throttles.size:
-        thr = flight.throttles
-        at_limit = np.any((thr <= 0.0) | (thr >= 1.0), axis=1) & ~np.all(thr <= 0.0, axis=1)
-        sat_time = float(np.sum(np.diff(t)[at_limit[:-1]]))
-    else:
-        sat_time = 0.0
+    facts = flight.facts
+    n_thr = facts.n_thrusters if facts is not None else (flight.throttles.shape[1] if flight.throttles.ndim == 2 else 0)
+    sat_time = _saturation_time(flight, n_thr)
 
-    gl_events = sum(1 for e in flight.events if e[1] == EV_GIMBAL_LOCK)
-    if gl_events == 0 and n:
-        gl_events = int(flight.gimbal_lock[0]) + int(np.sum(flight.gimbal_lock[1:] & ~flight.gimbal_lock[:-1]))
+    # One definition with `lander fly` (metrics_fit): the sim's GIMBAL_LOCK events.
+    gl_events: int | None = gimbal_lock_count(e[1] for e in flight.events)
+    if not flight.events_recorded:
+        gl_events = gimbal_lock_entries(flight.gimbal_lock, facts.attitude) if facts is not None else None
 
-    qn = float(np.max(np.abs(np.linalg.norm(flight.q, axis=1) - 1.0))) if n else 0.0
+    qn: float | None = float(np.max(np.abs(np.linalg.norm(flight.q, axis=1) - 1.0))) if n else 0.0
+    if facts is not None and facts.attitude == "euler":
+        qn = None
     l_drift = None
-    if n > 1 and flight.throttles.size:
-        free = np.all(np.nan_to_num(flight.throttles) == 0.0, axis=1)
+    stab = flight.stabiliser if len(flight.stabiliser) == n else np.zeros(n, dtype=bool)
+    chute = flight.parachute if len(flight.parachute) == n else np.zeros(n, dtype=bool)
+    free = torque_free(flight.throttles, stab, chute, flight.phase, facts) if n > 1 else np.zeros(n, dtype=bool)
+    if free.any():
         L = angular_momentum_W(flight)
         # Each contiguous thrust-free span conserves its own L_W; report the worst span.
         edges = np.flatnonzero(np.diff(np.concatenate(([0], free.astype(int), [0]))))
@@ -347,8 +419,8 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
         states=n,
         outcome=outcome,
         touchdown_speed=touchdown,
-        fuel_used=float(flight.fuel[0] - flight.fuel[-1]) if n else 0.0,
-        final_altitude=float(flight.altitude[-1]) if n else float("nan"),
+        fuel_used=float(flight.fuel[0] - flight.fuel[-1]) if n and fuel_applies(n_thr) else None,
+        final_altitude=float(flight.altitude[-1]) if n and altitude_applies(flight.r_W[-1], facts) else None,
         demand_altitude=hd,
         step_size=step,
         settling_time=settling,
@@ -370,7 +442,7 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
 
 def _fmt(v: Any) -> str:
     if v is None:
-        return "-"
+        return "n/a"
     if isinstance(v, float):
         if math.isnan(v):
             return "nan"
@@ -440,147 +512,3 @@ def to_json(all_metrics: list[Metrics], extra: dict[str, Any] | None = None) -> 
     for key, value in (extra or {}).items():
         doc[key] = [clean(v) for v in value] if isinstance(value, list) else clean(value)
     return json.dumps(doc, indent=2)
-
-
-# --- plots ------------------------------------------------------------------------------------
-
-
-def is_rotor(flight: Flight) -> bool:
-    """Rotor (gimballed top) flights get the z-axis track of reference 1, Figure 1."""
-    return "rotor" in flight.meta.get("scene", "").lower() or "rotor" in flight.name.lower()
-
-
-#: Plot kinds :func:`figures` draws (``ztrack`` only when a flight is a rotor's).
-PLOT_KINDS = ("altitude", "attitude", "throttles", "trajectory", "ztrack")
-_TIME = "simulation time [s]"
-
-
-def _panels(plt: Any, n: int, height: float) -> tuple[Any, list[Any]]:
-    """``n`` stacked panels on one time axis, each with its own time labels (a reader may look at
-    any panel alone)."""
-    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(8, height), layout="constrained", squeeze=False)
-    for ax in axes[:, 0]:
-        ax.set_xlabel(_TIME)
-        ax.xaxis.set_tick_params(labelbottom=True)
-        ax.grid(True)
-    return fig, list(axes[:, 0])
-
-
-def _components(fig: Any, flights: list[Flight], panels: list[tuple[Any, Any, list[str]]]) -> None:
-    """Plot per-component series: ``panels`` is ``(axes, f -> (N, k) array, component names)``.
-
-    One flight: a colour per component and a legend per panel. Several: the flight's colour
-    (the same in every panel) and a line style per component, with a flight key above.
-    """
-    several = len(flights) > 1
-    for ax, series, names in panels:
-        for i, f in enumerate(flights):
-            y = series(f)
-            for j in range(y.shape[1] if y.ndim == 2 else 0):
-                if several:
-                    ax.plot(f.t, y[:, j], color=ps.colour(i), ls=ps.LINESTYLES[j % len(ps.LINESTYLES)], gid=f.name)
-                else:
-                    ax.plot(f.t, y[:, j], color=ps.colour(j), label=names[j] if j < len(names) else f"{j}", gid=f.name)
-        k = min(len(names), len(ps.LINESTYLES))
-        if several and k:
-            ax.legend(handles=ps.style_key(ps.LINESTYLES[:k], names[:k]), loc="upper left",
-                      bbox_to_anchor=(1.01, 1.0), fontsize="small")
-        elif not several and ax.get_legend_handles_labels()[0]:  # none for a flight without thrusters
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    if several:
-        ps.legend_outside(fig, ps.colour_key([f.name for f in flights]), [f.name for f in flights])
-
-
-def figures(flights: list[Flight]) -> dict[str, Any]:
-    """The standard figures of one flight, or of several overlaid, as matplotlib Figures by kind.
-
-    ``altitude`` (altitude with the demand in force, dashed, and climb rate), ``attitude`` (ZXZ
-    angles and body rates), ``throttles``, ``trajectory`` (3-D, world frame, relative to the
-    start, one scale on every axis) and, for rotor flights, ``ztrack`` (body z axis in world
-    coordinates, reference 1 Figure 1). A flight has one colour in every panel; legends sit
-    outside the axes.
-    """
-    plt = ps.pyplot()
-    names = [f.name for f in flights]
-    out: dict[str, Any] = {}
-
-    fig, (a1, a2) = _panels(plt, 2, 6.5)
-    for i, f in enumerate(flights):
-        c = ps.colour(i)
-        a1.plot(f.t, f.altitude, color=c, gid=f.name)
-        if len(f.demand):
-            td = np.concatenate([f.demand_t, [f.t[-1]]]) if len(f.t) else f.demand_t
-            hd = np.concatenate([f.demand, [f.demand[-1]]]) if len(f.t) else f.demand
-            a1.step(td, hd, where="post", ls="--", color=c, lw=1.0, gid=f.name)
-        a2.plot(f.t, f.climb_rate, color=c, gid=f.name)
-    a1.set_ylabel("altitude [m]")
-    a2.set_ylabel("climb rate [m/s]")
-    key = ps.style_key(["-", "--"], ["altitude", "demand altitude"])
-    handles = ps.colour_key(names) + key if len(flights) > 1 else key
-    ps.legend_outside(fig, handles, [h.get_label() for h in handles])
-    out["altitude"] = fig
-
-    fig, (a1, a2) = _panels(plt, 2, 6.5)
-    a1.set_ylabel("ZXZ Euler angle [deg]")
-    a2.set_ylabel("body rate [rad/s]")
-    _components(fig, flights, [
-        (a1, lambda f: np.degrees(f.euler), ["phi", "theta", "psi"]),
-        (a2, lambda f: f.omega_B, ["omega_x", "omega_y", "omega_z"]),
-    ])
-    out["attitude"] = fig
-
-    fig, (ax,) = _panels(plt, 1, 4.0)
-    ax.set_ylabel("throttle [0-1]")
-    ax.set_ylim(-0.05, 1.05)
-    n_thr = max((f.throttles.shape[1] for f in flights if f.throttles.ndim == 2), default=0)
-    _components(fig, flights, [(ax, lambda f: f.throttles, [f"thruster {j}" for j in range(n_thr)])])
-    out["throttles"] = fig
-
-    fig = plt.figure(figsize=(7, 6.5), layout="constrained")
-    ax = fig.add_subplot(projection="3d")
-    tracks = []
-    for i, f in enumerate(flights):
-        d = f.r_W - f.r_W[0] if len(f.t) else f.r_W
-        tracks.append(d)
-        ax.plot(d[:, 0], d[:, 1], d[:, 2], color=ps.colour(i), gid=f.name)
-    ps.equal_limits_3d(ax, tracks)
-    ax.set_xlabel("x_W - x0 [m]")
-    ax.set_ylabel("y_W - y0 [m]")
-    ax.set_zlabel("z_W - z0 [m]", labelpad=8)
-    ax.set_title("trajectory, world frame, from the start (one scale on every axis)")
-    if len(flights) > 1:
-        ps.legend_outside(fig, ps.colour_key(names), names)
-    out["trajectory"] = fig
-
-    rotors = [(i, f) for i, f in enumerate(flights) if is_rotor(f)]
-    if rotors:
-        out["ztrack"] = ztrack_figure([(f.name, f.z_axis_track(), ps.colour(i)) for i, f in rotors])
-    return out
-
-
-def ztrack_figure(tracks: list[tuple[str, np.ndarray, str]]) -> Any:
-    """Reference 1 Figure 1: the body z axis in world coordinates, ``R(q)[2, :]`` (eq 13), as a
-    3-D track on the unit sphere; ``tracks`` are ``(name, (N, 3) array, colour)``."""
-    plt = ps.pyplot()
-    fig = plt.figure(figsize=(6, 6.5), layout="constrained")
-    ax = fig.add_subplot(projection="3d")
-    for name, z, c in tracks:
-        ax.plot(z[::2, 0], z[::2, 1], z[::2, 2], color=c, gid=name)
-    ax.set_xlim(-1, 1)
-    ax.set_ylim(-1, 1)
-    ax.set_zlim(-1, 1)
-    ax.set_box_aspect((1.0, 1.0, 1.0), zoom=ps.BOX_ZOOM_3D)
-    for axis, name in ((ax.xaxis, "x_W"), (ax.yaxis, "y_W"), (ax.zaxis, "z_W")):
-        axis.set_ticks([-1.0, -0.5, 0.0, 0.5, 1.0])
-        axis.set_label_text(f"{name} [-]")
-    ax.set_title("body z axis in world coordinates (unit vector)")
-    if len(tracks) > 1:
-        ps.legend_outside(fig, ps.colour_key([n for n, _, _ in tracks], [c for _, _, c in tracks]),
-                          [n for n, _, _ in tracks])
-    return fig
-
-
-def write_plots(flights: list[Flight], outdir: str | Path, prefix: str = "flight") -> list[Path]:
-    """Draw :func:`figures` to ``<outdir>/<prefix>-<kind>.png`` and return the paths written."""
-    out = Path(outdir)
-    return [ps.save(fig, out / f"{prefix}-{kind}.png") for kind, fig in figures(flights).items()]

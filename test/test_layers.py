@@ -13,9 +13,10 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 ROS = ("rclpy", "lander_interfaces", "std_msgs", "geometry_msgs", "nav_msgs", "sensor_msgs", "std_srvs",
        "rosgraph_msgs", "diagnostic_msgs", "visualization_msgs", "rcl_interfaces", "builtin_interfaces", "foxglove")
-CORE = ("lander_sim/physics", "lander_sim/integrators", "lander_sim/scenes", "lander_sim/fast",
+CORE = ("lander_sim/physics", "lander_sim/integrators", "lander_sim/scenes", "lander_sim/fast", "lander_sim/sensors",
         "lander_sim/simulation.py", "lander_sim/errors.py", "lander_sim/yaml_file.py", "lander_sim/look.py")
-CONTROL = ("lander_autopilot/controllers", "lander_autopilot/design", "lander_autopilot/guidance")
+CONTROL = ("lander_autopilot/controllers", "lander_autopilot/design", "lander_autopilot/guidance",
+           "lander_autopilot/estimation")
 PROJECT = ("lander_sim", "lander_ros", "lander_autopilot", "lander_tools", "lander_yaml")
 
 

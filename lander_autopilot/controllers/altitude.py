@@ -71,6 +71,7 @@ class BaselineController(Controller):
     """
 
     name: ClassVar[str] = "baseline"
+    AXES: ClassVar[tuple[str, ...]] = ("altitude",)
     PARAMS: ClassVar[ParamTable] = ParamTable((
         Param("kp", 0.1, "1/m", "finite", "throttle per metre of altitude error", finite),
         Param("kd", 0.0, "s/m", "finite", "throttle per m/s of climb rate (0: P-only, eq 21)", finite),
@@ -85,6 +86,10 @@ class BaselineController(Controller):
         if self._tmax <= 0.0:
             raise ControllerError("vehicle has no enabled thruster: the baseline autopilot cannot work")
         self._ones = np.ones(self.n_thrusters)
+
+    def gains(self) -> dict[str, np.ndarray]:
+        """``kp`` [1/m] and ``kd`` [s/m], the law's two gains."""
+        return {"kp": np.array(self.kp), "kd": np.array(self.kd)}
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
         h, hd = altitude_and_climb_rate(state)
@@ -103,6 +108,7 @@ class AltitudeController(Controller):
     """
 
     name: ClassVar[str] = "altitude"
+    AXES: ClassVar[tuple[str, ...]] = ("altitude",)
     PARAMS: ClassVar[ParamTable] = ParamTable(ALTITUDE_ROWS)
 
     def __init__(self, vehicle: Vehicle, **params: Unpack[AltitudeParams]) -> None:
@@ -165,6 +171,7 @@ class IntegralAltitudeController(Controller):
     """
 
     name: ClassVar[str] = "altitude-integral"
+    AXES: ClassVar[tuple[str, ...]] = ("altitude",)
     PARAMS: ClassVar[ParamTable] = ParamTable((
         Param("poles", (-0.8, -1.0, -1.2), "1/s", "3 poles, Re < 0",
               "closed-loop poles of [int (h - h_e) dt, h - h_e, h'], placed at the design fuel", poles(3)),

@@ -56,6 +56,8 @@ EULER_ROWS: tuple[Param, ...] = QUATERNION_ROWS + (
 class _AttitudeLaw(Controller):
     """Shared construction: gains from a model's ``(A, B)`` by pole placement or given ``K``."""
 
+    AXES: ClassVar[tuple[str, ...]] = ("attitude",)
+
     def __init__(self, vehicle: Vehicle, *, K: object | None, design_fuel: float | None) -> None:
         super().__init__(vehicle)
         if vehicle.n_thrusters == 0:

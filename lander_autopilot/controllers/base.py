@@ -171,6 +171,10 @@ class Controller(ABC):
     """
 
     name: ClassVar[str] = "controller"
+    #: The linear models whose axes the law controls (``"altitude"``: eq 16, ``"attitude"``: eq 28;
+    #: :func:`lander_autopilot.design.report.uncontrollable_axes`), so a launcher can say which of
+    #: them a scene's thrusters cannot reach; () declares none.
+    AXES: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, vehicle: Vehicle) -> None:
         self.vehicle = vehicle
@@ -183,6 +187,13 @@ class Controller(ABC):
         """Figures of the law's own work (SI units, e.g. a solver's times in s) for the autopilot
         node's ``/diagnostics``, a sweep's row and the benches; none by default."""
         return {}
+
+    def gains(self) -> dict[str, np.ndarray]:
+        """The feedback gains in force, by parameter name, as the law takes them (``K`` of
+        ``u = u_e - K (x - x_e)``, at the design fuel; in flight the law rescales it by
+        ``m / m_design``, docs/control.md): a law's attribute ``K`` when it has one, else none."""
+        K = getattr(self, "K", None)
+        return {} if K is None else {"K": np.atleast_2d(np.asarray(K, dtype=float))}
 
     def update(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         """Throttles for ``state`` at time ``t`` [s] to meet ``demand``, clipped to [0, 1]."""

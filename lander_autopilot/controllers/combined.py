@@ -108,6 +108,17 @@ class SumController(Controller):
         self.attitude = attitude
         self.attitude_priority = attitude_priority
 
+    #: Both parts': the altitude (eq 16) and the attitude (eq 28) model.
+    AXES: ClassVar[tuple[str, ...]] = ("altitude", "attitude")
+
+    def gains(self) -> dict[str, np.ndarray]:
+        """Each part's gains under the name the summed law takes them by (``K_altitude``,
+        ``K_attitude``; another part's gain keeps its own name with the part's suffix)."""
+        out: dict[str, np.ndarray] = {}
+        for part, suffix in ((self.altitude, "altitude"), (self.attitude, "attitude")):
+            out.update({f"{k}_{suffix}": v for k, v in part.gains().items()})
+        return out
+
     def reset(self) -> None:
         self.altitude.reset()
         self.attitude.reset()

@@ -126,6 +126,13 @@ def accepted_parameters(name: str) -> list[str] | None:
     return _accepted(factory)
 
 
+def controller_axes(name: str) -> tuple[str, ...]:
+    """The linear models whose axes controller ``name`` controls (its class's ``AXES``:
+    ``"altitude"``, ``"attitude"``; () for a plug-in that declares none); ControllerError for an
+    unknown name."""
+    return tuple(getattr(_factory(name), "AXES", ()))
+
+
 def make_controller(name: str, vehicle: Vehicle, **params: object) -> Controller:
     """Build controller ``name`` for ``vehicle`` with ``params``.
 

@@ -7,6 +7,7 @@ prints it like seed 2's Octave scripts do.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -116,6 +117,52 @@ def design_report(
     }
 
 
+@dataclass(frozen=True)
+class AxesRank:
+    """One model a law controls that a vehicle's thrusters do not fully reach (:func:`uncontrollable_axes`)."""
+
+    model: str  #: ``"altitude"`` (eq 16) or ``"attitude"`` (eq 28)
+    rank: int  #: rank of eq 6's controllability matrix
+    n_states: int
+    #: States with a part in the uncontrollable subspace (the left null space of eq 6's ``P``), in
+    #: the model's order: ``psi, wz`` for vertical thrusters (no torque about body z).
+    states: tuple[str, ...]
+
+
+def uncontrollable_axes(vehicle: Vehicle, fuel: float, models: tuple[str, ...],
+                        E_e: tuple[float, float, float] = UPRIGHT_EULER) -> list[AxesRank]:
+    """The models among ``models`` (``"altitude"``, ``"attitude"``; others are ignored) that the
+    vehicle's enabled thrusters cannot control at the hover, each with its rank and the states
+    its uncontrollable directions involve (a component above 1e-9 of a unit basis vector).
+
+    Rank of eq 6's ``P = [B AB ... A^(n-1) B]`` (:func:`.controllability.controllability`), the
+    attitude model linearised at ``E_e`` (upright by default). A vehicle with no upward thrust
+    cannot hover: its altitude model is reported with rank 0. Plain numpy (no python-control)."""
+    out: list[AxesRank] = []
+    for model in models:
+        states: tuple[str, ...]
+        if model == "altitude":
+            states = ALTITUDE_STATES
+            try:
+                alt = altitude_model(vehicle, fuel, 500.0)
+            except DesignError:
+                out.append(AxesRank(model, 0, len(states), states))
+                continue
+            A, B = alt.A, alt.B
+        elif model == "attitude":
+            states = ATTITUDE_STATES
+            att = attitude_model(vehicle, fuel, E_e)
+            A, B = att.A, att.B
+        else:
+            continue
+        c = controllability(A, B)
+        if c.controllable:
+            continue
+        involved = tuple(s for j, s in enumerate(states) if np.linalg.norm(c.uncontrollable[j, :]) > 1e-9)
+        out.append(AxesRank(model, c.rank, A.shape[0], involved))
+    return out
+
+
 #: [-] entries under this fraction of the largest of their matrix (or pole set) are printed as 0:
 #: the round-off of the linearisation and of the design (cos(pi/2) = 6.1e-17 in a rotation, the
 #: 1e-16 left of a pole at the origin), far under the 5 digits printed. The JSON keeps every bit.
@@ -168,4 +215,85 @@ def format_report(rep: dict[str, Any]) -> str:
             lines.append(f"LQR: {lq['error']}")
         else:
             lines += ["LQR K =", _fmt_matrix(lq["K"]), f"LQR closed-loop poles: {_fmt_poles(lq['closed_loop_poles'])}"]
+    return "\n".join(lines)
+
+
+# --- the sensors section (``lander design SCENE --sensors ...``) ------------------------------------
+
+
+def sensors_report(vehicle: Vehicle, fuel: float, sensors: tuple[str, ...], altitude: float = 500.0,
+                   E_e: tuple[float, float, float] = UPRIGHT_EULER) -> dict[str, Any]:
+    """Observability of the altitude (eq 16), attitude (eq 28) and translational models for the
+    sensor set (:mod:`.observability`), and for the altitude model, when its sensors observe it,
+    the steady-state Kalman gain and the LQG closed loop with the separation check.
+
+    Noise: the sensors' default parameters (:mod:`lander_sim.sensors`) at the hover: the
+    altimeter's ``sigma = hypot(floor, fraction h)`` and the Doppler's floor, as densities
+    ``R_N = sigma^2 / rate``; the process noise is the accelerometer's white-noise density on the
+    vertical acceleration (the disturbance a filter propagating on the IMU sees).
+    """
+    from lander_sim.sensors.params import defaults
+    from lander_sim.sensors.suite import SENSORS as SENSOR_TABLES
+
+    from ..controllers.combined import LQR_Q_ALTITUDE, LQR_R_ALTITUDE
+    from .gains import match_poles
+    from .observability import lqg, observability, sensor_outputs
+
+    alt = altitude_model(vehicle, fuel, altitude)
+    att = attitude_model(vehicle, fuel, E_e)
+    full = full_model(vehicle, fuel, altitude, E_e)
+    models = (("altitude", alt.A, ALTITUDE_STATES), ("attitude", att.A, ATTITUDE_STATES),
+              ("translational", full.A, FULL_STATES))
+    linear = tuple(s for s in sensors if s != "accelerometer")  # its rows of C are zero (module .observability)
+    out: dict[str, Any] = {"sensors": list(sensors)}
+    for key, A, states in models:
+        C = sensor_outputs(key, states, linear, 1).C
+        obs = observability(A, C)
+        out[key] = {"states": list(states), "outputs": list(sensor_outputs(key, states, linear, 1).labels),
+                    "observability_rank": obs.rank, "n_states": A.shape[0],
+                    "unobservable_basis": np.where(np.abs(obs.unobservable) < 1e-12, 0.0, obs.unobservable).T.tolist()}
+    so = sensor_outputs("altitude", ALTITUDE_STATES, linear, 1)
+    if observability(alt.A, so.C).observable:
+        rates, sig = [], []
+        for label in so.labels:
+            if label == "z":
+                v = defaults(SENSOR_TABLES["altimeter"][0])
+                sig.append(float(np.hypot(v["noise_floor"], v["noise_fraction"] * altitude)))
+            else:
+                v = defaults(SENSOR_TABLES["doppler"][0])
+                sig.append(float(v["noise_floor"]))
+            rates.append(float(v["rate"]))
+        R_N = np.diag(np.array(sig) ** 2 / np.array(rates))
+        q_n = float(defaults(SENSOR_TABLES["imu"][0])["accel_noise_density"]) ** 2
+        d = lqg(alt.A, alt.B, so.C, np.diag(LQR_Q_ALTITUDE), LQR_R_ALTITUDE * np.eye(1),
+                np.array([[0.0], [1.0]]), np.array([[q_n]]), R_N)
+        union = np.concatenate([d.regulator_poles, d.estimator_poles])
+        out["altitude"]["kalman"] = {"R_N": R_N.tolist(), "Q_N": q_n, "L": d.L.tolist(),
+                                     "estimator_poles": _poles_json(d.estimator_poles)}
+        out["altitude"]["lqg"] = {"K": d.K.tolist(), "regulator_poles": _poles_json(d.regulator_poles),
+                                  "closed_loop_poles": _poles_json(d.poles),
+                                  "separation_error": match_poles(union, d.poles)}
+    return out
+
+
+def format_sensors_report(rep: dict[str, Any]) -> str:
+    """Human-readable text of :func:`sensors_report`."""
+    lines = [f"\n== Sensors: {' '.join(rep['sensors']) or '(none)'}"]
+    for key in ("altitude", "attitude", "translational"):
+        s = rep[key]
+        lines.append(f"{key} model, outputs [{' '.join(s['outputs'])}]: observability rank "
+                     f"{s['observability_rank']} of {s['n_states']}")
+        if s["unobservable_basis"]:
+            lines.append("  unobservable directions (rows, over " + " ".join(s["states"]) + "):")
+            lines.append(_fmt_matrix(s["unobservable_basis"]))
+    alt = rep["altitude"]
+    if "kalman" in alt:
+        k, g = alt["kalman"], alt["lqg"]
+        lines += ["altitude model: steady-state Kalman gain (lqe) L =", _fmt_matrix(k["L"]),
+                  f"estimator poles: {_fmt_poles(k['estimator_poles'])}",
+                  f"LQG: regulator poles {_fmt_poles(g['regulator_poles'])}",
+                  f"LQG closed-loop poles: {_fmt_poles(g['closed_loop_poles'])}",
+                  f"separation: closed-loop poles = regulator + estimator poles to {g['separation_error']:.1e}"]
+    else:
+        lines.append("altitude model: not observable with these sensors, no Kalman gain")
     return "\n".join(lines)

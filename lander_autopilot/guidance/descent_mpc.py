@@ -69,8 +69,10 @@ stack for a problem that is convex anyway.
 Why this call, in a control period of 0.1 s on a machine whose two cores also fly the simulation:
 the programme is written once with cvxpy parameters in DPP form (each product of the step with the
 drag's linearisation is a parameter of its own: a parameter times a parameter times a variable is
-not DPP, and cvxpy then compiles the whole programme anew at every call), canonicalised once, and
-each period handed to Clarabel directly (:class:`.conic_program.ConicProgram`: the parameters times
+not DPP, and cvxpy then compiles the whole programme anew at every call), canonicalised once
+(:class:`MpcProgramme`, built with the controller before the flight: the modelling layer's import,
+~1-2 s the first time in a process, and the canonicalisation, 25-50 ms, stay out of the period that
+hands over), and each period handed to Clarabel directly (:class:`.conic_program.ConicProgram`: the parameters times
 cvxpy's own sparse data tensor, then a fresh solver; the same data and the same answer as cvxpy's
 Clarabel interface, to the bit). What is left per period is Clarabel's own iterations (~10) and its
 set-up: over the de-orbit sweeps' MPC flights ~2 ms at the median, p99 7 ms, worst 9 ms with the
@@ -193,20 +195,107 @@ class Reference:
         return pos, vel
 
 
+class MpcProgramme:
+    """The receding-horizon programme (module docstring) for a horizon, pointing and glide-slope
+    limits and an end, written once in cvxpy (DPP) and canonicalised once
+    (:class:`.conic_program.ConicProgram`): what is left per period is one Clarabel solve. It holds
+    no flight: every parameter, the target's included, is set before each solve
+    (:meth:`DescentMpc.command`), so one programme serves every handover of a controller, and
+    building it (the modelling layer's import and canonicalisation, tens of milliseconds and more)
+    is done before the flight, not in the period that hands over to it.
+    """
+
+    def __init__(self, settings: MpcSettings, max_tilt: float, glide_slope: float, free_horizontal: bool) -> None:
+        import cvxpy as cp
+
+        self.settings = st = settings
+        self.max_tilt, self.glide_slope, self.free_horizontal = float(max_tilt), float(glide_slope), bool(free_horizontal)
+        H = st.horizon_steps
+        # The step is a parameter: the horizon shrinks to the reference's end (exact discretisation of
+        # r'' = a + a_drag + g_L with a held over a step of h s: h and h^2/2 enter linearly, DPP)
+        self.h = cp.Parameter(nonneg=True)
+        self.hh = cp.Parameter(nonneg=True)
+        self.x0 = cp.Parameter(6)
+        self.target = cp.Parameter(3)  # [m, local] where the plan ends at rest
+        self.amax = cp.Parameter(H, nonneg=True)  # thrust bound / predicted mass, each step
+        self.fuel_w = cp.Parameter(H, nonneg=True)  # predicted mass x h: sum w |a| = the impulse (fuel / alpha)
+        # drag acceleration over each predicted step, linearised about the reference: a_D(v) ~
+        # d0 + D v (D the diagonal of d a_D / d v), so that the QP sees that a faster fall brakes more
+        # for free (what makes the optimum coast and then burn late). Each enters times h and h^2/2,
+        # as parameters of their own (h (d0 + g_L), h D, ...): a parameter times a parameter times a
+        # variable is not DPP, and cvxpy would then compile the whole programme again every period
+        self.push_h = cp.Parameter((H, 3))  # h (d0 + g_L): velocity gained over the step without thrust
+        self.push_hh = cp.Parameter((H, 3))  # h^2/2 (d0 + g_L): its share of the step's displacement
+        self.slow_h = cp.Parameter((H, 3), nonpos=True)  # h D: the drag's slope on the step's mean velocity
+        self.slow_hh = cp.Parameter((H, 3), nonpos=True)  # h^2/2 D
+        self.end_w = cp.Parameter(nonneg=True)
+        x = cp.Variable((H + 1, 6))
+        a = cp.Variable((H, 3))
+        lag_cons = []
+        if st.attitude_lag > 0:
+            # The thrust axis follows the command with a lag (the attitude loop's): the horizontal
+            # thrust acceleration flown, r, relaxes toward the commanded one, exactly over each step
+            # (keep = exp(-h / lag)), from what the body's axis gives now; the QP commands ahead of it.
+            r = cp.Variable((H + 1, 2))
+            self.r0 = cp.Parameter(2)
+            self.keep = cp.Parameter(nonneg=True)
+            self.gain = cp.Parameter(nonneg=True)
+            lag_cons = [r[0] == self.r0, r[1:] == self.keep * r[:-1] + self.gain * a[:, :2]]
+            thrust = cp.hstack([(r[:-1] + r[1:]) / 2, a[:, 2:3]])
+        else:
+            thrust = a
+        # drag at each step's mean velocity (trapezoidal): the fall slows by ~8 m/s over a 0.45 s step at
+        # full thrust, and drag at the step's start overstated the braking (the plan ended ~2 m low)
+        v_mean = (x[:-1, 3:] + x[1:, 3:]) / 2
+        cons = lag_cons + [x[0] == self.x0,
+                x[1:, :3] == (x[:-1, :3] + self.h * x[:-1, 3:] + self.hh * thrust + self.push_hh
+                              + cp.multiply(self.slow_hh, v_mean)),
+                x[1:, 3:] == x[:-1, 3:] + self.h * thrust + self.push_h + cp.multiply(self.slow_h, v_mean),
+                cp.norm(a, axis=1) <= self.amax,
+                a[:, 2] >= math.cos(max_tilt) * cp.norm(a, axis=1),
+                x[:, 2] >= 0]
+        if glide_slope > 0 and not free_horizontal:
+            rel = x[:, :3] - np.ones((H + 1, 1)) @ cp.reshape(self.target, (1, 3), order="C")
+            # the state at the handover may already be outside the cone: only the predicted steps
+            cons.append(cp.norm(rel[1:, :2], axis=1) * math.tan(glide_slope) <= rel[1:, 2])
+        # The end state as an exact (L1) penalty: at rest at the target when that is reachable (the
+        # penalty's weight is far above the fuel's price of a metre or a m/s), the nearest miss when
+        # it is not, so that every period's problem is feasible. The miss is a variable of its own:
+        # the weight (a parameter) times a norm of the target (a parameter) would not be DPP.
+        rest = np.r_[0.0, 0.0, 0.0]
+        end = (x[H, 2:] - cp.hstack([self.target[2:3], rest]) if free_horizontal
+               else x[H] - cp.hstack([self.target, rest]))
+        miss = cp.Variable(end.shape[0])
+        cons.append(miss == end)
+        cost = cp.sum(cp.multiply(self.fuel_w, cp.norm(a, axis=1))) + self.end_w * cp.norm1(miss)
+        self.a = a
+        self.program = ConicProgram(cp.Problem(cp.Minimize(cost), cons))
+
+    def fits(self, settings: MpcSettings, limits: DescentLimits, free_horizontal: bool) -> bool:
+        """Whether this programme is the one ``settings``, ``limits`` and ``free_horizontal`` pose
+        (horizon, lag, pointing and glide-slope limits, end): the rest enters as parameters."""
+        st = self.settings
+        return (st.horizon_steps == settings.horizon_steps and (st.attitude_lag > 0) == (settings.attitude_lag > 0)
+                and self.max_tilt == limits.max_tilt and self.glide_slope == limits.glide_slope
+                and self.free_horizontal == free_horizontal)
+
+
 class DescentMpc:
     """The receding-horizon law; :meth:`command` gives the thrust vector to fly now.
 
     ``free_horizontal``: the descent ends in a hover at ``target_L``'s altitude wherever the
-    fuel-optimal reference ends it (no landing spot), which then is the target.
+    fuel-optimal reference ends it (no landing spot), which then is the target. ``programme``: the
+    :class:`MpcProgramme` to solve each period (built here when not given; one given must fit
+    ``settings``, ``limits`` and ``free_horizontal``).
     """
 
     def __init__(self, position_L: np.ndarray, velocity_L: np.ndarray, mass: float, gravity: float,
                  limits: DescentLimits, target_L: np.ndarray | None = None,
                  settings: MpcSettings | None = None, free_horizontal: bool = False,
-                 drag: DragModel | None = None) -> None:
-        import cvxpy as cp
-
+                 drag: DragModel | None = None, programme: MpcProgramme | None = None) -> None:
         self.settings = st = settings or MpcSettings()
+        if programme is not None and not programme.fits(st, limits, free_horizontal):
+            raise GuidanceError("the MPC programme given was built for another horizon, lag, limits or end")
         self.limits, self.g = limits, float(gravity)
         self.target = np.zeros(3) if target_L is None else np.asarray(target_L, float)
         ref_limits = DescentLimits(rho_max=limits.rho_max * st.reference_thrust_fraction, alpha=limits.alpha,
@@ -222,60 +311,7 @@ class DescentMpc:
         self.reference = Reference(reference, gravity, self.target)
         self.drag = drag
         self.stats = MpcStats()
-        H = st.horizon_steps
-        # The step is a parameter: the horizon shrinks to the reference's end (exact discretisation of
-        # r'' = a + a_drag + g_L with a held over a step of h s: h and h^2/2 enter linearly, DPP)
-        self._h = cp.Parameter(nonneg=True)
-        self._hh = cp.Parameter(nonneg=True)
-        self._x0 = cp.Parameter(6)
-        self._amax = cp.Parameter(H, nonneg=True)  # thrust bound / predicted mass, each step
-        self._fuel_w = cp.Parameter(H, nonneg=True)  # predicted mass x h: sum w |a| = the impulse (fuel / alpha)
-        # drag acceleration over each predicted step, linearised about the reference: a_D(v) ~
-        # d0 + D v (D the diagonal of d a_D / d v), so that the QP sees that a faster fall brakes more
-        # for free (what makes the optimum coast and then burn late). Each enters times h and h^2/2,
-        # as parameters of their own (h (d0 + g_L), h D, ...): a parameter times a parameter times a
-        # variable is not DPP, and cvxpy would then compile the whole programme again every period
-        self._push_h = cp.Parameter((H, 3))  # h (d0 + g_L): velocity gained over the step without thrust
-        self._push_hh = cp.Parameter((H, 3))  # h^2/2 (d0 + g_L): its share of the step's displacement
-        self._slow_h = cp.Parameter((H, 3), nonpos=True)  # h D: the drag's slope on the step's mean velocity
-        self._slow_hh = cp.Parameter((H, 3), nonpos=True)  # h^2/2 D
-        self._end_w = cp.Parameter(nonneg=True)
-        x = cp.Variable((H + 1, 6))
-        a = cp.Variable((H, 3))
-        lag_cons = []
-        if st.attitude_lag > 0:
-            # The thrust axis follows the command with a lag (the attitude loop's): the horizontal
-            # thrust acceleration flown, r, relaxes toward the commanded one, exactly over each step
-            # (keep = exp(-h / lag)), from what the body's axis gives now; the QP commands ahead of it.
-            r = cp.Variable((H + 1, 2))
-            self._r0 = cp.Parameter(2)
-            self._keep = cp.Parameter(nonneg=True)
-            self._gain = cp.Parameter(nonneg=True)
-            lag_cons = [r[0] == self._r0, r[1:] == self._keep * r[:-1] + self._gain * a[:, :2]]
-            thrust = cp.hstack([(r[:-1] + r[1:]) / 2, a[:, 2:3]])
-        else:
-            thrust = a
-        # drag at each step's mean velocity (trapezoidal): the fall slows by ~8 m/s over a 0.45 s step at
-        # full thrust, and drag at the step's start overstated the braking (the plan ended ~2 m low)
-        v_mean = (x[:-1, 3:] + x[1:, 3:]) / 2
-        cons = lag_cons + [x[0] == self._x0,
-                x[1:, :3] == (x[:-1, :3] + self._h * x[:-1, 3:] + self._hh * thrust + self._push_hh
-                              + cp.multiply(self._slow_hh, v_mean)),
-                x[1:, 3:] == x[:-1, 3:] + self._h * thrust + self._push_h + cp.multiply(self._slow_h, v_mean),
-                cp.norm(a, axis=1) <= self._amax,
-                a[:, 2] >= math.cos(limits.max_tilt) * cp.norm(a, axis=1),
-                x[:, 2] >= 0]
-        if limits.glide_slope > 0 and not free_horizontal:
-            rel = x[:, :3] - np.ones((H + 1, 1)) @ self.target[None, :]
-            # the state at the handover may already be outside the cone: only the predicted steps
-            cons.append(cp.norm(rel[1:, :2], axis=1) * math.tan(limits.glide_slope) <= rel[1:, 2])
-        # The end state as an exact (L1) penalty: at rest at the target when that is reachable (the
-        # penalty's weight is far above the fuel's price of a metre or a m/s), the nearest miss when
-        # it is not, so that every period's problem is feasible.
-        miss = x[H, 2:] - np.r_[self.target[2], 0.0, 0.0, 0.0] if free_horizontal else x[H] - np.r_[self.target, 0, 0, 0]
-        cost = cp.sum(cp.multiply(self._fuel_w, cp.norm(a, axis=1))) + self._end_w * cp.norm1(miss)
-        self._a = a
-        self._program = ConicProgram(cp.Problem(cp.Minimize(cost), cons))
+        self.programme = programme or MpcProgramme(st, limits.max_tilt, limits.glide_slope, free_horizontal)
         self._last = self.reference.at(0.0)[2]
 
     def command(self, t: float, position_L: np.ndarray, velocity_L: np.ndarray, mass: float,
@@ -297,22 +333,24 @@ class DescentMpc:
         tk = t + h * np.arange(H)
         ref_mass = np.interp(tk, sol.t, sol.mass)
         m_k = np.maximum(mass - (ref_mass[0] - ref_mass), self.limits.dry_mass)  # burning as the reference does
-        put = self._program.set
-        put(self._h, h)
-        put(self._hh, h * h / 2)
-        put(self._x0, np.r_[position_L, velocity_L])
+        q = self.programme
+        put = q.program.set
+        put(q.target, self.target)
+        put(q.h, h)
+        put(q.hh, h * h / 2)
+        put(q.x0, np.r_[position_L, velocity_L])
         amax = st.plan_thrust_fraction * available * self.limits.rho_max / m_k
         # tightened with the time ahead (what a disturbance can have done by then grows with it): the
         # step flown now may use the whole bound, a step reserve_time or more ahead keeps plan_reserve
         amax *= 1.0 - st.plan_reserve * np.minimum(h * np.arange(H) / st.reserve_time, 1.0)
-        put(self._amax, amax)
-        put(self._fuel_w, m_k * h)
-        put(self._end_w, st.end_penalty * mass)
+        put(q.amax, amax)
+        put(q.fuel_w, m_k * h)
+        put(q.end_w, st.end_penalty * mass)
         if st.attitude_lag > 0:
             keep = math.exp(-h / st.attitude_lag)
-            put(self._keep, keep)
-            put(self._gain, 1.0 - keep)
-            put(self._r0, float(np.linalg.norm(self._last)) * np.asarray(thrust_axis_L, float)[:2]
+            put(q.keep, keep)
+            put(q.gain, 1.0 - keep)
+            put(q.r0, float(np.linalg.norm(self._last)) * np.asarray(thrust_axis_L, float)[:2]
                 if thrust_axis_L is not None else self._last[:2])
         if self.drag is None:
             d0, dv = np.zeros((H, 3)), np.zeros((H, 3))
@@ -323,16 +361,16 @@ class DescentMpc:
             dv = np.minimum(np.diagonal(self.drag.jacobian(pos, vel, m_k), axis1=1, axis2=2), 0.0)
             d0 = self.drag.acceleration(pos, vel, m_k) - dv * vel
         push = d0 + np.array([0.0, 0.0, -self.g])
-        put(self._push_h, h * push)
-        put(self._push_hh, (h * h / 2) * push)
-        put(self._slow_h, h * dv)
-        put(self._slow_hh, (h * h / 2) * dv)
+        put(q.push_h, h * push)
+        put(q.push_hh, (h * h / 2) * push)
+        put(q.slow_h, h * dv)
+        put(q.slow_hh, (h * h / 2) * dv)
         t0 = time.perf_counter()
-        ok = self._program.solve()
+        ok = q.program.solve()
         self.stats.solve_times.append(time.perf_counter() - t0)
         if ok:
             n = min(max(int(round(st.hold_time / h)), 1), H)  # the plan's steps the command is flown over
-            self._last = np.array(self._program.value(self._a)[:n].mean(axis=0))
+            self._last = np.array(q.program.value(q.a)[:n].mean(axis=0))
         else:
             self.stats.failures += 1  # hold the last command: the next period tries again
         acc = self._last

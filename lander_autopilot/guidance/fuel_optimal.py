@@ -42,14 +42,24 @@ first, for the first feasible one on a grid; (2) bisection of the feasibility ed
 trial one convex solve, the first pass (thrust bound about the flat-out burn, drag about a linear
 fall to rest: feasibility needs no converged drag); (3) from the edge, steps doubling until the
 fuel rises, then golden section inside that bracket (unimodal), the drag converged at each trial
-but started from the converged trial nearest in final time (two passes where a cold start takes
-three to fifteen: the first pass's own fuel is biased by its crude linearisation, enough to move
-the minimum beside the steep edge). All on a coarse programme of ``SEARCH_STEPS`` nodes (a fifth
-of the solve time of 60), then (4) the golden section again on the caller's ``steps`` within
-``FINE_BRACKET`` of the coarse minimum. With drag that is ~45 convex solves, two thirds of them
-on the coarse programme, against ~150 solves through a modelling layer for a golden section of
-cold-started drag iterations at every trial final time; (5) where the drag settles at none of
-them, that plain search on the caller's programme is the fall-back.
+but started from the converged trial nearest in final time (one pass where a cold start takes
+three to fifteen: a warm start counts as the pass before it, so a trial whose drag is consistent
+with its own trajectory and whose fuel agrees with its neighbour's is settled at once; the first
+pass's own fuel is biased by its crude linearisation, enough to move the minimum beside the steep
+edge). All on a coarse programme of ``SEARCH_STEPS`` nodes (a pass there costs a third of one on
+60), then (4) the golden section again on the caller's ``steps``, from ``FINE_BRACKET`` below the
+coarse minimum up to it: more nodes place the burn's switch more finely, so the edge and the
+minimum come earlier, never later (measured on 56 de-orbit handovers: 0 to 9.3e-4 of the final
+time earlier; 9.4e-4 on a drag-free fall of 26 s). With drag that is ~34 convex solves, four fifths
+of them on the coarse programme; (5) where the drag settles at none of the trials, a plain search
+on the caller's programme is the fall-back.
+
+Every pass is solved without the solver's iterative refinement (:meth:`.descent_conic.ConicProgram._settings`,
+half the time of a pass): the solutions handed out carry the static regularisation's error, measured
+over those handovers as the end's equalities to 2e-11 m and the fuel to 2e-7 of itself against a
+refined pass, far inside the 1e-3 to which the passes agree. One solver object serves all the
+passes of a programme, its data updated in place (the sparsity is fixed): the set-up of the KKT
+system's factorisation is paid once per search, not once per pass.
 
 Solver: Clarabel (an interior-point conic solver, installed with the project) on the conic
 matrices laid out once (:mod:`.descent_conic`): the problem is a second-order cone programme,
@@ -57,7 +67,8 @@ which OSQP (a QP solver) cannot take. Measured side by side on the de-orbit hand
 (bench/guidance_reference.py): the modelling layer's canonicalisation and Clarabel's iterative
 refinement were each about half of a 60-node pass; QOCO and ECOS (smaller interior-point codes)
 solved the same matrices no faster than Clarabel on this 2-core machine (a few runs each, the
-machine shared); a generated solver (cvxpygen, QOCOGEN) was not measured.
+machine shared). What is left is Clarabel's own iterations (~15 a pass, ~0.12 ms each on 20 nodes,
+~0.33 ms on 60).
 :class:`CvxpyProgram` keeps the cvxpy formulation as an independent cross-check (``backend``).
 """
 from __future__ import annotations
@@ -109,9 +120,9 @@ MIN_FINAL_TIME = 1e-2
 #: feasibility edge at 20 nodes lies within 3 ms of the edge at 60 on the common handover case
 #: (12.7203 s against 12.7182 s), a quarter of the 1e-3 relative tolerance asked of the reference
 SEARCH_STEPS = 20
-#: [-] the fine programme's bracket about the coarse minimum, each side, of the final time: twice
-#: the largest shift of the minimum seen between 20 and 60 nodes (4.4e-4, a de-orbit sweep case)
-FINE_BRACKET = 1e-3
+#: [-] how far below the coarse minimum the caller's programme searches, of the final time: its
+#: minimum comes 0 to 9.4e-4 earlier (module docstring, (4)), with half as much again in hand
+FINE_BRACKET = 1.5e-3
 #: [-] the golden sections end at this share of the final time's tolerance: beside the feasibility
 #: edge the fuel is steep (falling by ~10 kg/s into its minimum, rising by ~0.8 kg/s past it
 #: under the chute), so an error in ``t_f`` there costs fuel to first order, not second
@@ -242,13 +253,14 @@ class FixedTimeProgram:
     flat-out burn ``z0(t)`` once (their eq 19-20); that is conservative by ``(z - z0)^2 / 2`` after
     a coast, a few per cent of thrust. ``backend``: ``"conic"`` (:class:`.descent_conic.ConicProgram`,
     flown) or ``"cvxpy"`` (:class:`CvxpyProgram`, the cross-check). ``solves`` counts the convex
-    solves (passes) made so far.
+    solves (passes) made so far. ``refine``: the solver's iterative refinement on the passes after
+    the first (:meth:`_pass`).
     """
 
-    def __init__(self, problem: DescentProblem, steps: int, backend: str = "conic") -> None:
+    def __init__(self, problem: DescentProblem, steps: int, backend: str = "conic", refine: bool = True) -> None:
         if backend not in ("conic", "cvxpy"):
             raise GuidanceError(f"backend must be 'conic' or 'cvxpy', got {backend!r}")
-        self.problem, self.N = problem, int(steps)
+        self.problem, self.N, self.refine = problem, int(steps), refine
         self.program: ConicProgram | CvxpyProgram = (ConicProgram if backend == "conic" else CvxpyProgram)(problem, steps)
         self.solves = 0
         self._firsts: dict[float, tuple[Nodes | None, np.ndarray | None]] = {}
@@ -311,20 +323,23 @@ class FixedTimeProgram:
         re-linearisations (default 4 without drag: the thrust bound's expansion converges in 2-3;
         30 with drag, whose iteration settles in 3-15 passes where it settles at all (measured on the
         de-orbit handovers; a final time that has not settled by then counts as infeasible)).
-        ``warm``: a solution of this programme at a neighbouring final time, whose nodes (the same
-        fractions of the descent) are the first linearisation instead of the flat-out burn and the
-        linear fall: near the optimum it is all but converged here, and the passes take two."""
+        ``warm``: a solution at a neighbouring final time (of this programme, or of another number
+        of nodes, read at this programme's fractions of the descent), the first linearisation
+        instead of the flat-out burn and the linear fall, and the pass before the first: near the
+        optimum it is all but converged here, and one pass settles it when its drag is consistent
+        with its own trajectory and its fuel agrees with ``warm``'s."""
         if not (final_time > 0):
             raise GuidanceError(f"final_time must be positive, got {final_time}")
         m0, drag = self.problem.mass, self.problem.drag
         passes = passes if passes is not None else (4 if drag is None else 30)
         dt, z_ref, z_flat, drag_ref = self._start(final_time)
-        if warm is not None and len(warm.t) == self.N + 1:
-            z_ref = np.log(warm.mass)
+        if warm is not None:
+            pos, vel, mass = _at_fractions(warm, self.N)
+            z_ref = np.log(mass)
             if drag_ref is not None:
-                drag_ref = (warm.position_L, warm.velocity_L, drag_ref[2])
+                drag_ref = (pos, vel, drag_ref[2])
         relax, prev_step = 1.0, None
-        best: float | None = None
+        best: float | None = None if warm is None or drag is None else math.log(float(warm.mass[-1]))
         converged = drag is None
         nodes: Nodes | None = None
         for i in range(passes):
@@ -332,7 +347,7 @@ class FixedTimeProgram:
                 self.first(final_time)
                 nodes, J = self._firsts[final_time]
             else:
-                nodes, J = self._pass(dt, z_ref, z_flat, drag_ref)
+                nodes, J = self._pass(dt, z_ref, z_flat, drag_ref, self.refine)
             if nodes is None:
                 return None
             zN = float(nodes.z[-1])
@@ -368,6 +383,20 @@ class FixedTimeProgram:
         t = np.arange(self.N + 1) * dt
         return DescentSolution(t=t, position_L=nodes.r, velocity_L=nodes.v, mass=mass, thrust_L=nodes.u * mass[:, None],
                                fuel=float(m0 - mass[-1]), final_time=float(final_time), solve_count=1)
+
+
+def _at_fractions(sol: DescentSolution, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position [m], velocity [m/s] and mass [kg] of ``sol`` at ``steps + 1`` nodes at the same
+    fractions of its descent as a programme of ``steps`` steps has them (linear between ``sol``'s
+    nodes; ``sol``'s own nodes when it has that many)."""
+    if len(sol.t) == steps + 1:
+        return sol.position_L, sol.velocity_L, sol.mass
+    s, f = np.linspace(0.0, 1.0, steps + 1), sol.t / sol.final_time
+
+    def at(a: np.ndarray) -> np.ndarray:
+        return np.stack([np.interp(s, f, a[:, i]) for i in range(a.shape[1])], axis=1)
+
+    return at(sol.position_L), at(sol.velocity_L), np.interp(s, f, sol.mass)
 
 
 def solve_fixed_time(problem: DescentProblem, final_time: float, steps: int = 60,
@@ -460,8 +489,9 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     time in the bracket is feasible.
     """
     lo, hi = map(float, t_bounds if t_bounds is not None else _bracket(problem))
-    fine_program = FixedTimeProgram(problem, steps, backend)
-    coarse_program = fine_program if steps <= SEARCH_STEPS else FixedTimeProgram(problem, SEARCH_STEPS, backend)
+    fine_program = FixedTimeProgram(problem, steps, backend, refine=False)
+    coarse_program = (fine_program if steps <= SEARCH_STEPS
+                      else FixedTimeProgram(problem, SEARCH_STEPS, backend, refine=False))
     coarse, fine = _Search(coarse_program), _Search(fine_program)
 
     def tol(t: float) -> float:
@@ -479,12 +509,14 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     t_edge = coarse.edge(grid[k - 1], grid[k], tol(grid[k])) if k > 0 else grid[0]
     a, b = coarse.rise(t_edge, tol(t_edge), hi)
     t_coarse = _Search.golden(lambda t: coarse.fuel(t, warm=True), a, b, tol(a) * EDGE_SHARE)
-    # (4) golden section of the converged fuel on the fine programme about the coarse minimum,
-    # each trial warm from the nearest one before
-    width = FINE_BRACKET * max(1.0, t_coarse)
-    fine.fuel(t_coarse)
-    _Search.golden(lambda t: fine.fuel(t, warm=True), max(lo, t_coarse - width), min(hi, t_coarse + width),
-                   tol(t_coarse) * EDGE_SHARE)
+    # (4) golden section of the converged fuel on the caller's programme from FINE_BRACKET below the
+    # coarse minimum up to it, the first trial's drag started from the coarse optimum (at its
+    # fractions of the descent), each later one from the nearest trial
+    if fine is not coarse:
+        width = FINE_BRACKET * max(1.0, t_coarse)
+        fine.cache[t_coarse] = fine_program.solve(t_coarse, warm=coarse.cache.get(t_coarse))
+        _Search.golden(lambda t: fine.fuel(t, warm=True), max(lo, t_coarse - width), t_coarse,
+                       tol(t_coarse) * EDGE_SHARE)
     sol = fine.best()
     if sol is None:
         # (5) no settled optimum there: golden section of the converged fuel on the grid's

@@ -131,11 +131,28 @@ def _fmt(value: Any) -> str:
     return f"{value:.9g}"
 
 
-def control_status(s: LoopSummary, controller: str, mode: str) -> tuple[int, str, dict[str, str]]:
-    """Level, message and values of the control-loop status. WARN when the p99 compute time
-    exceeds the control period (the loop cannot keep up in real time)."""
+def format_gains(gains: Mapping[str, Any]) -> str:
+    """Gains as one line, 5 significant digits: ``K_altitude [[0.13247, 0.26762]], ...`` ("" for none)."""
+
+    def fmt(v: Any) -> str:
+        a = np.asarray(v, dtype=float)
+        if a.ndim == 0:
+            return f"{float(a):.5g}"
+        return "[" + ", ".join(fmt(x) for x in a) + "]"
+
+    return ", ".join(f"{k} {fmt(v)}" for k, v in gains.items())
+
+
+def control_status(s: LoopSummary, controller: str, mode: str, gains: str = "",
+                   params: str = "") -> tuple[int, str, dict[str, str]]:
+    """Level, message and values of the control-loop status: the controller, its ``gains`` in
+    force (:func:`format_gains`) and the ``controller_params`` it was built with (YAML), the
+    loop's figures. WARN when the p99 compute time exceeds the control period (the loop cannot
+    keep up in real time)."""
     values = {
         "controller": controller,
+        "gains": gains,
+        "controller_params": params,
         "mode": mode,
         "control_period_s": _fmt(s.period),
         "compute_time_median_s": _fmt(s.median),

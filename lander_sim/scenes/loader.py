@@ -23,6 +23,7 @@ from lander_sim.physics.state import AttitudeMode, pack
 from lander_sim.physics.vehicle import Vehicle
 from lander_sim.physics.wind import GustConfig
 from lander_sim.scenes import vehicles
+from lander_sim.sensors.suite import SensorsConfig, parse_sensors
 from lander_sim.yaml_file import Reader
 from lander_yaml import read_yaml
 
@@ -95,7 +96,8 @@ class Scene:
     ``wind_W`` [m/s] is the mean wind, world frame (scene key ``wind_W`` or ``wind.mean_W``);
     ``gust`` the optional turbulence about it (``wind.gust``, :mod:`lander_sim.physics.wind`);
     ``thruster_failures`` the scheduled failures (``vehicle.failures``);
-    ``end_time`` [s] the optional ``end.max_time``.
+    ``end_time`` [s] the optional ``end.max_time``;
+    ``sensors`` the sensors switched on (``sensors:``, :mod:`lander_sim.sensors.suite`), None for none.
     """
 
     name: str
@@ -115,6 +117,7 @@ class Scene:
     gust: GustConfig | None = None
     thruster_failures: tuple[ThrusterFailure, ...] = ()
     end_time: float | None = None
+    sensors: SensorsConfig | None = None
     aliases: tuple[str, ...] = ()
     source: Path | None = field(default=None, compare=False)
 
@@ -126,6 +129,7 @@ _TOP = {
     "name", "aliases", "description", "vehicle", "initial", "attitude_mode", "integrator", "integrator_options", "dt",
     "fixed_pivot",
     "models", "stabiliser", "gimbal_threshold", "wind_W", "wind", "autopilot", "end", "touchdown",
+    "sensors",
 }
 
 
@@ -350,6 +354,7 @@ def parse_scene(data: Any, file: str, source: Path | None = None) -> Scene:
         gust=gust,
         thruster_failures=failures,
         end_time=end_time,
+        sensors=parse_sensors(rd, top.get("sensors")),
         aliases=aliases,
         source=source,
     )

@@ -43,15 +43,15 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import warnings
 
-    from lander_tools.analysis import Flight, metrics, table, to_json, write_plots
+    from lander_tools.analysis import Flight, metrics, table, to_json
     from lander_tools.bagio import BagError, BagWarning, read_bag
 
     if args.scene is not None and not args.reference:
         print("lander analyse: --scene is used only with --reference", file=sys.stderr)
         return 2
-    if args.out is not None and args.out.exists() and not args.out.is_dir():
-        print(f"lander analyse: --out {args.out}: not a folder (a file of that name exists); give a folder for "
-              "the plots", file=sys.stderr)
+    problem = _out_problem(args.out, args.prefix)
+    if problem:
+        print(f"lander analyse: {problem}", file=sys.stderr)
         return 2
     flights: list[Flight] = []
     for path in args.bags:
@@ -76,15 +76,27 @@ def run(args: argparse.Namespace) -> int:
                 print()
                 print("\n".join(o.lines()))
     if args.out is not None:
-        for p in write_plots(flights, args.out, args.prefix):
-            print(f"wrote {p}", file=sys.stderr)
-        from lander_tools.reference_overlay import write_figure
-
-        for k, (f, o) in enumerate(zip(flights, overlays)):
-            if o is not None:
-                name = f"{args.prefix}-reference.png" if len(flights) == 1 else f"{args.prefix}-reference-{k + 1}.png"
-                print(f"wrote {write_figure(f, o, args.out / name)}", file=sys.stderr)
+        try:
+            _write_figures(flights, overlays, args.out, args.prefix)
+        except OSError as exc:  # the checks above cannot see everything (a read-only mount, a full disk)
+            print(f"lander analyse: --out {args.out}: cannot write the plots: {exc.strerror or exc}", file=sys.stderr)
+            return 2
     return rc
+
+
+def _write_figures(flights: list[Any], overlays: list[Any], out: Path, prefix: str) -> None:
+    import sys
+
+    from lander_tools.analysis_plots import write_plots
+    from lander_tools.reference_overlay import write_figure
+
+    out.mkdir(parents=True, exist_ok=True)
+    for p in write_plots(flights, out, prefix):
+        print(f"wrote {p}", file=sys.stderr)
+    for k, (f, o) in enumerate(zip(flights, overlays)):
+        if o is not None:
+            name = f"{prefix}-reference.png" if len(flights) == 1 else f"{prefix}-reference-{k + 1}.png"
+            print(f"wrote {write_figure(f, o, out / name)}", file=sys.stderr)
 
 
 def _references(flights: list[Any], paths: list[Path], scene: str | None) -> tuple[int, list[Any]]:
@@ -109,6 +121,27 @@ def _references(flights: list[Any], paths: list[Path], scene: str | None) -> tup
             out.append(None)
             rc = 2
     return rc, out
+
+
+def _out_problem(out: Path | None, prefix: str) -> str | None:
+    """What is wrong with the plots' folder ``out`` and file ``prefix``, checked before any bag is
+    read (the folder is made only when the plots are written); ``None`` if they can be used."""
+    import os
+
+    if not prefix or prefix in (".", "..") or "/" in prefix or os.sep in prefix:
+        return f"--prefix {prefix!r}: give a plain file-name start (no folder: that is --out)"
+    if out is None:
+        return None
+    if out.exists() and not out.is_dir():
+        return f"--out {out}: not a folder (a file of that name exists); give a folder for the plots"
+    base = out
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    if not base.is_dir():
+        return f"--out {out}: {base} is a file, so no folder can be made under it; give a folder for the plots"
+    if not os.access(base, os.W_OK | os.X_OK):
+        return f"--out {out}: cannot write in {base} (permission denied); give a folder you can write to"
+    return None
 
 
 def _name(path: Path, taken: list[str]) -> str:

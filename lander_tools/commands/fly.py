@@ -3,7 +3,8 @@
 ``SCENE`` may also be a scripted flight (``flights/*.yaml``, see docs/flying.md), which
 brings its own controller, timeline and end condition. Scene, controller and flight names and
 the ``--params`` file are checked before anything starts (one error line, the closest name
-offered). Exit status: 0 landed or time limit, 1 crashed, 2 error (also: another flight runs in the
+offered); so are ``--gains FILE`` (a gains file of ``lander design --write``) and ``--set NAME=VALUE``,
+built for the scene's vehicle as the autopilot will build them (lander_tools.gains). Exit status: 0 landed or time limit, 1 crashed, 2 error (also: another flight runs in the
 domain), 3 the bag misses messages or holds another flight's, 130 interrupted (see :mod:`lander_tools.fly`).
 Heavy imports (rclpy) happen in :func:`run`, so ``lander fly --help`` stays fast.
 """
@@ -28,6 +29,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ROS parameters YAML for the nodes: sections lander_sim (the simulator), autopilot "
                              "(or lander_autopilot) and /** (both), each holding ros__parameters; an unknown "
                              "section or key is an error")
+    parser.add_argument("--gains", metavar="FILE", type=Path,
+                        help="fly the controller and gains of this file (written by 'lander design SCENE --write "
+                             "FILE'); checked against the scene's vehicle before anything starts")
+    parser.add_argument("--set", metavar="NAME=VALUE", action="append", default=[], dest="sets",
+                        help="one controller parameter (e.g. --set kp=0.2, --set 'altitude_poles=[-0.5, -0.6]'); "
+                             "repeat for more; on top of --gains or the scene's parameters")
     parser.add_argument("--compose", action="store_true", help="run sim and autopilot in one process (faster)")
     parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                         help="sim waits for the autopilot's answer to every state (default: on with an autopilot)")
@@ -74,6 +81,10 @@ def run(args: argparse.Namespace) -> int:
                 speed=1.0 if args.speed is None else args.speed, lockstep=args.lockstep,
                 params_file=args.params, record=args.record, storage=args.storage,
             )
+        if args.gains is not None or args.sets:
+            from lander_tools.gains import apply_gains
+
+            apply_gains(plan, args.gains, args.sets, explicit_controller=args.controller)
         if args.topics:
             plan.topics = tuple(args.topics)
         plan.compose = plan.compose or args.compose

@@ -91,10 +91,42 @@ def check_plan(plan: FlightPlan) -> str | None:
     return controller
 
 
+def controllability_warning(scene_name: str, controller: str | None) -> str | None:
+    """One line when ``controller`` flies axes that ``scene_name``'s thrusters cannot control
+    (rank of eq 6's controllability matrix of the altitude or the attitude model below its
+    size: lander_autopilot.design.report.uncontrollable_axes), naming them; None otherwise.
+    Vertical thrusters make no torque about body z (``psi``, ``wz``); scenario 8's one thruster
+    reaches a single axis."""
+    from lander_autopilot.controllers.registry import controller_axes
+    from lander_autopilot.design.report import uncontrollable_axes
+
+    if controller is None:
+        return None
+    try:
+        axes = controller_axes(controller)
+        scene = load_scene(scene_name)
+    except ValueError:
+        return None  # refused elsewhere, with its own line
+    short = uncontrollable_axes(scene.vehicle, float(scene.initial_state[13]), axes)
+    if not short:
+        return None
+    parts = "; ".join(f"{a.model} controllability rank {a.rank} of {a.n_states} (the uncontrollable directions "
+                      f"involve {', '.join(a.states)})" for a in short)
+    held = " (the scene's stabiliser holds the attitude)" if scene.stabiliser else ""
+    return (f"warning: with the thrusters of scene {scene.name!r}, controller {controller!r} cannot control every "
+            f"axis it flies: {parts}{held}; 'lander design {scene_name}' shows why")
+
+
 def resolve_controller(plan: FlightPlan) -> str | None:
-    """The controller to fly, or ``None`` for the sim alone (scene without autopilot, or ``none``)."""
+    """The controller to fly, or ``None`` for the sim alone (``none``, or a scene without autopilot):
+    ``--controller``, else the ``controller`` of the ``--params`` file's autopilot section (a gains
+    file names the law its gains are for), else the scene's."""
     if plan.controller is not None:
         return None if plan.controller.lower() == "none" else plan.controller
+    if plan.params_file is not None:
+        named = read_params_file(plan.params_file)[AUTOPILOT_NODE].get("controller")
+        if isinstance(named, str) and named:
+            return None if named.lower() == "none" else named
     try:
         scene = load_scene(plan.scene)
     except ValueError as exc:

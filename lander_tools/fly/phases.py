@@ -22,7 +22,7 @@ from std_srvs.srv import Trigger
 
 from lander_interfaces.srv import Reset
 from lander_ros.flight_span import parse_matched, shortfalls, surplus
-from lander_tools.fly.checks import check_plan, scene_end_time, scene_label
+from lander_tools.fly.checks import check_plan, controllability_warning, scene_end_time, scene_label
 from lander_tools.fly.domain import DomainTaken, FlightPlace, choose_place, write_run_file
 from lander_tools.fly.flight import (
     Interrupted,
@@ -187,6 +187,9 @@ def start_nodes(f: LaunchedFlight) -> None:
         f"[fly] scene {scene_label(f.plan.scene)}, controller {f.controller or 'none (sim alone)'}, "
         f"speed {f.plan.speed or 'max'}, pids " + ", ".join(f"{k} {p.pid}" for k, p in f.procs.items()) + "\n"
     )
+    warning = controllability_warning(f.plan.scene, f.controller)
+    if warning:
+        f.out.write(f"[fly] {warning}\n")
 
 
 def wait_until_matched(f: LaunchedFlight) -> None:
@@ -454,6 +457,7 @@ def _add_what_was_watched(f: LaunchedFlight, result: FlightResult) -> None:
     if sup.state is not None:
         result.final = final_state(sup.state)
     result.touchdown = dict(sup.touchdown)
+    result.controller, result.gains = sup.autopilot_gains
     result.touchdown_class = sup.touchdown_class
     if len(sup.gimbal_locks) > 1:
         ts = sup.gimbal_locks

@@ -110,6 +110,10 @@ class FlightResult:
     #: Lockstep states the sim advanced past without the autopilot's answer (its FLIGHT_ENDED): with
     #: any, the flight is not the deterministic one (the autopilot was late, e.g. starved of CPU).
     lockstep_timeouts: int = 0
+    #: The autopilot's controller and its gains in force at its last report (its /diagnostics), as
+    #: one line (lander_autopilot.ros.loop_stats.format_gains); "" without an autopilot's report.
+    controller: str = ""
+    gains: str = ""
 
 
 def pilot_mode(plan: FlightPlan, controller: str | None) -> bool:

@@ -9,23 +9,25 @@ import numpy as np
 
 from lander_ros.flight_span import lockstep_warning
 from lander_tools.fly.plan import FlightResult
+from lander_tools.metrics_fit import altitude_applies, fuel_applies
 from lander_tools.sweep.metrics import altitude_and_tilt
 
 
 def final_state(msg: Any) -> dict[str, float]:
     """What a pilot reads off the last LanderState: altitude [m], climb rate [m/s], ground speed
     [m/s], fuel [kg] and the tilt [deg] of the body z axis from the local vertical (the message's
-    orientation components are the core's quaternion, lander_sim.ros.convert). Altitude and tilt
-    are NaN where they do not apply: a fixed pivot (the rotor scenes, position r = 0) has no
-    local vertical."""
+    orientation components are the core's quaternion, lander_sim.ros.convert). NaN where a figure
+    does not apply (lander_tools.metrics_fit, the rules ``lander analyse`` follows): altitude and
+    tilt on a fixed pivot (the rotor scenes, position r = 0), which has no local vertical; fuel on
+    a vehicle without thrusters."""
     o, p = msg.orientation, msg.position
     r = np.array([p.x, p.y, p.z])
     altitude, tilt = altitude_and_tilt(r, np.array([o.w, o.x, o.y, o.z]))
     return {
-        "altitude": float(msg.altitude) if math.isfinite(altitude) else math.nan,
+        "altitude": float(msg.altitude) if altitude_applies(r) and math.isfinite(altitude) else math.nan,
         "climb_rate": float(msg.climb_rate),
         "ground_speed": float(msg.ground_speed),
-        "fuel": float(msg.fuel_mass),
+        "fuel": float(msg.fuel_mass) if fuel_applies(len(msg.throttles)) else math.nan,
         "tilt_deg": math.degrees(tilt),
     }
 
@@ -36,7 +38,8 @@ def _figure(value: float, fmt: str, unit: str) -> str:
 
 def summary(result: FlightResult) -> str:
     """The flight summary ``lander fly`` prints: every figure named, with its unit; "n/a" where a
-    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot)."""
+    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot); the
+    controller and the gains in force as the autopilot last reported them."""
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
     lines = [
         f"flight ended: {result.outcome} at sim time t = {result.sim_time:.2f} s "
@@ -67,6 +70,9 @@ def summary(result: FlightResult) -> str:
         lines.append(f"  touchdown at t = {_figure(td.get('t_impact', math.nan), '.3f', 's')}: " + ", ".join(figures))
     elif f:
         lines.append("  touchdown: n/a (none in this flight)")
+    if result.controller:
+        gains = f"gains in force {result.gains}" if result.gains else "no gains named by the law"
+        lines.append(f"  controller {result.controller!r}: {gains}")
     warning = lockstep_warning(result.lockstep_timeouts)
     if warning:
         lines.append(f"  lockstep: {warning}")

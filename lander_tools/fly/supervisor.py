@@ -101,6 +101,8 @@ class Supervisor:
         #: What the sim's latest /diagnostics said (paused or not) and when it came (wall clock)
         self.sim_paused = False
         self.sim_word_wall = time.monotonic()
+        #: The autopilot's latest control report: its controller and the gains in force ("" none).
+        self.autopilot_gains: tuple[str, str] = ("", "")
         #: The sim's FLIGHT_ENDED, decoded: the flight is over.
         self.flight_end: FlightEnd | None = None
         #: Named values of the LANDED / CRASHED event (t_impact [s], descent_rate [m/s], ...).
@@ -174,6 +176,10 @@ class Supervisor:
     def _on_diagnostics(self, msg: Any) -> None:
         if any(st.name.startswith(f"{AUTOPILOT_NODE}:") for st in msg.status):
             self._count("/diagnostics")  # the autopilot's only: the sim's come from FLIGHT_ENDED
+        for st in msg.status:
+            if st.name == f"{AUTOPILOT_NODE}: control":  # lander_autopilot's control-loop report
+                values = {kv.key: kv.value for kv in st.values}
+                self.autopilot_gains = (values.get("controller", ""), values.get("gains", ""))
         paused = sim_paused(msg)
         if paused is not None:
             self.sim_word_wall, self.sim_paused = time.monotonic(), paused

@@ -116,3 +116,31 @@ def test_no_final_time_on_a_scan_beats_the_search():
     assert sol.fuel <= min(fuels) * (1 + FUEL_AGREEMENT)
     # the search's trials are first passes, one convex solve each: far fewer than 30 a final time
     assert sol.solve_count < 60
+
+
+def test_a_warm_start_from_a_coarser_programme_settles_at_its_cold_optimum():
+    """A solution on 20 nodes read at a 60-node programme's fractions of the descent starts that
+    programme's drag iteration: it settles (in one pass where the drag is consistent at once) on the
+    optimum the cold iteration finds, to the passes' agreement."""
+    problem = _problems()["chute handover"]
+    tf = solve(problem, steps=60, t_tol=1e-3).final_time * 1.01
+    coarse = FixedTimeProgram(problem, 20).solve(tf)
+    assert coarse is not None
+    fine = FixedTimeProgram(problem, 60)
+    warm = fine.solve(tf, warm=coarse)
+    cold_program = FixedTimeProgram(problem, 60)
+    cold = cold_program.solve(tf)
+    assert warm is not None and cold is not None and len(warm.t) == 61
+    assert warm.fuel == pytest.approx(cold.fuel, rel=FUEL_AGREEMENT)
+    np.testing.assert_allclose(warm.position_L[-1], cold.position_L[-1], atol=1e-6)
+    assert fine.solves < cold_program.solves
+
+
+def test_the_search_on_more_nodes_never_ends_later_than_on_its_coarse_programme():
+    """More nodes place the burn's switch more finely: the search on 60 nodes ends at or before the
+    one on the coarse programme alone (20), and for no more fuel than that one's final time gives."""
+    problem = _problems()["chute handover"]
+    fine, coarse = solve(problem, steps=60, t_tol=1e-3), solve(problem, steps=20, t_tol=1e-3)
+    assert fine.final_time <= coarse.final_time * (1 + 1e-9)
+    at_coarse = FixedTimeProgram(problem, 60).solve(coarse.final_time)
+    assert at_coarse is not None and fine.fuel <= at_coarse.fuel * (1 + FUEL_AGREEMENT)

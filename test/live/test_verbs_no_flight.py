@@ -6,7 +6,8 @@ import subprocess
 import sys
 
 VERBS_NO_FLIGHT = [["demand", "510"], ["wind", "1", "0", "0"], ["switch", "lqr"], ["pause"], ["resume"],
-                   ["step", "3"], ["reset"], ["topics"], ["echo", "/lander/state", "--once"]]
+                   ["step", "3"], ["reset"], ["topics"], ["echo", "/lander/state", "--once"],
+                 ["throttle", "0.2"], ["stabiliser", "on"], ["parachute"]]
 
 
 def test_each_verb_says_in_one_line_that_no_flight_is_running(module_ros_domain: int) -> None:

@@ -9,7 +9,7 @@ import numpy as np
 from lander_sim.physics.events import EventKind
 from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
-from lander_tools.analysis import ztrack_figure
+from lander_tools.analysis_plots import ztrack_figure
 from lander_tools.plotstyle import colour, save
 
 DOC_IMAGE = Path(__file__).resolve().parents[2] / "docs" / "img" / "rotor-z-track.png"

@@ -11,6 +11,7 @@ from lander_tools.bagio import lander_typestore
 
 STATE = "lander_interfaces/msg/LanderState"
 STATUS = "lander_interfaces/msg/AutopilotStatus"
+EVENT = "lander_interfaces/msg/FlightEvent"
 
 
 def write_flight_bag(
@@ -27,11 +28,20 @@ def write_flight_bag(
     meta: dict[str, str] | None = None,
     status_demand: np.ndarray | None = None,
     phase: np.ndarray | None = None,
+    euler: np.ndarray | None = None,
+    gimbal_lock: np.ndarray | None = None,
+    stabiliser: np.ndarray | None = None,
+    status_mode: np.ndarray | None = None,
+    status_saturated: np.ndarray | None = None,
+    events: list[tuple[float, int]] | None = None,
 ) -> None:
     """A bag with /clock, /lander/state (upright lander on the -y axis, as scene 'hover') and
     /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised).
     With ``status_demand`` (one value per state) also /autopilot/status carrying that demand in force;
-    ``phase`` (one per state, default 0: flying) is the state's phase field (1 landed, 2 crashed)."""
+    ``phase`` (one per state, default 0: flying) is the state's phase field (1 landed, 2 crashed);
+    ``euler`` (N, 3), ``gimbal_lock`` and ``stabiliser`` (N,) the state's fields of those names;
+    ``status_mode`` and ``status_saturated`` (N,) the status's (with ``status_demand``); ``events``
+    ``(t, kind)`` pairs written to /lander/events (``[]`` records the topic with no event)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = lander_typestore()
@@ -55,6 +65,12 @@ def write_flight_bag(
         c_state = w.add_connection("/lander/state", STATE, typestore=ts)
         c_dem = w.add_connection("/lander/demand_altitude", "std_msgs/msg/Float64", typestore=ts)
         c_status = w.add_connection("/autopilot/status", STATUS, typestore=ts) if status_demand is not None else None
+        if events is not None:
+            c_ev = w.add_connection("/lander/events", EVENT, typestore=ts)
+            for te, kind in events:
+                ev = T[EVENT](header=T["std_msgs/msg/Header"](stamp=stamp(te), frame_id=""), kind=kind,
+                              detail="synthetic", values=np.zeros(0))
+                w.write(c_ev, offset + int(round(te * 1e9)), ts.serialize_cdr(ev, EVENT))
         events = sorted(demand)
         for i in range(n):
             tb = offset + int(round(t[i] * 1e9))
@@ -69,8 +85,8 @@ def write_flight_bag(
                 position=T["geometry_msgs/msg/Point"](x=0.0, y=-r, z=0.0),
                 velocity=T["geometry_msgs/msg/Vector3"](x=0.0, y=-climb_rate[i], z=0.0),
                 orientation=T["geometry_msgs/msg/Quaternion"](x=q[i, 1], y=q[i, 2], z=q[i, 3], w=q[i, 0]),
-                euler_zxz=np.array([0.0, np.pi / 2, 0.0]),
-                gimbal_lock=False,
+                euler_zxz=np.array([0.0, np.pi / 2, 0.0]) if euler is None else np.asarray(euler[i], dtype=float),
+                gimbal_lock=False if gimbal_lock is None else bool(gimbal_lock[i]),
                 angular_velocity=T["geometry_msgs/msg/Vector3"](x=omega_B[i, 0], y=omega_B[i, 1], z=omega_B[i, 2]),
                 altitude=float(altitude[i]),
                 climb_rate=float(climb_rate[i]),
@@ -80,14 +96,15 @@ def write_flight_bag(
                 throttles=np.asarray(throttles[i], dtype=float),
                 phase=0 if phase is None else int(phase[i]),
                 parachute_deployed=False,
-                stabiliser_on=False,
+                stabiliser_on=False if stabiliser is None else bool(stabiliser[i]),
             )
             w.write(c_state, tb, ts.serialize_cdr(msg, STATE))
             if c_status is not None:
                 st = T[STATUS](
                     header=T["std_msgs/msg/Header"](stamp=stamp(t[i]), frame_id=""),
-                    controller="synthetic", saturated=False, steps=i + 1, rejected=0, state_ok=True, last_error="",
+                    controller="synthetic", saturated=False if status_saturated is None else bool(status_saturated[i]), steps=i + 1, rejected=0, state_ok=True, last_error="",
                     throttles=np.asarray(throttles[i], dtype=float), demand_altitude=float(status_demand[i]),
-                    velocity_demanded=False, demand_velocity=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0), mode="",
+                    velocity_demanded=False, demand_velocity=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+                    mode="" if status_mode is None else str(status_mode[i]),
                 )
                 w.write(c_status, tb, ts.serialize_cdr(st, STATUS))

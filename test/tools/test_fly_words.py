@@ -35,3 +35,23 @@ def test_a_paused_flight_is_not_stalled_while_the_simulator_still_reports() -> N
     assert stall_reason(1000.0, 60.0, True, 999.0, t, limit) is None  # paused for 15 min, reporting
     gone = stall_reason(1000.0, 60.0, True, 960.0, t, limit)  # paused, then silent for 40 s
     assert gone == "no word from the simulator for 30.0 s (paused at t = 12.300 s)"
+
+
+def test_the_last_state_says_na_for_what_the_scene_has_not() -> None:
+    """The summary's last state follows lander analyse's rules (lander_tools.metrics_fit): a fixed
+    pivot (r = 0) has no altitude or tilt, a body without thrusters no fuel; a lander has all."""
+    import math
+
+    from lander_interfaces.msg import LanderState
+
+    from lander_tools.fly.summary import final_state
+
+    rotor = LanderState()
+    rotor.orientation.w, rotor.fuel_mass, rotor.throttles = 1.0, 0.0, []
+    f = final_state(rotor)
+    assert math.isnan(f["altitude"]) and math.isnan(f["tilt_deg"]) and math.isnan(f["fuel"])
+    lander = LanderState()
+    lander.position.z, lander.altitude, lander.orientation.w = 3.4e6 + 500.0, 500.0, 1.0
+    lander.fuel_mass, lander.throttles = 40.5, [0.5, 0.5, 0.5, 0.5]
+    f = final_state(lander)
+    assert (f["altitude"], f["fuel"]) == (500.0, 40.5)

@@ -35,7 +35,8 @@ def test_analyse_of_the_hover_flight_reports_demand_hover_error_and_draws_the_de
     # Item 2: the analysis showed "-" for the demand and every step metric, and no demand line:
     # the scene's demand never reached the bag. The autopilot's status now carries the demand in force.
     from lander_sim.scenes import load_scene
-    from lander_tools.analysis import Flight, figures
+    from lander_tools.analysis import Flight
+    from lander_tools.analysis_plots import figures
     from lander_tools.bagio import read_bag
 
     bag, _ = hover

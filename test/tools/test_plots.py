@@ -3,7 +3,7 @@ axes of every axes labelled, no legend over the data, one colour per flight in e
 trajectory's axes on one scale, and no matplotlib warning while drawing (docs/flying.md: what `lander analyse` draws).
 
 The Figure objects are inspected, not pixels: ``lander analyse``'s kinds
-(:func:`lander_tools.analysis.figures`), the rotor's z-axis track, the sweep plots and the
+(:func:`lander_tools.analysis_plots.figures`), the rotor's z-axis track, the sweep plots and the
 benchmarks' plots (their ``plot(data)`` functions, fed data in the shape of their JSON).
 """
 from __future__ import annotations
@@ -22,13 +22,8 @@ import pytest
 from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import quat_to_matrix
 from lander_tools import plotstyle as ps
-from lander_tools.analysis import (
-    PLOT_KINDS,
-    Flight,
-    figures,
-    write_plots,
-    ztrack_figure,
-)
+from lander_tools.analysis import Flight
+from lander_tools.analysis_plots import PLOT_KINDS, figures, write_plots, ztrack_figure
 
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 

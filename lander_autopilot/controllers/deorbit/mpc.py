@@ -38,7 +38,7 @@ from lander_sim.physics.vehicle import Vehicle
 
 from ...design.altitude import balanced_thrust, vertical_thrust
 from ...design.translational import local_frame
-from ...guidance.descent_mpc import DescentMpc, MpcSettings
+from ...guidance.descent_mpc import DescentMpc, MpcProgramme, MpcSettings
 from ...guidance.fuel_optimal import DescentLimits, DescentProblem, DragModel, GuidanceError, drag_up
 from ..attitude import QuaternionAttitudeController
 from ..base import ControlOutput, Demand, saturate
@@ -141,6 +141,8 @@ class MpcDescent:
         # the thrust axis is turned faster than the de-orbit slew's (-1): the QP's thrust direction
         # changes within seconds (the ground-speed law's inner loop uses the same -2)
         self.mpc_attitude = QuaternionAttitudeController(vehicle, poles=(MPC_ATTITUDE_POLE,) * 6)
+        # the QP, canonicalised here: the handover's period then pays only the reference and one solve
+        self.programme = MpcProgramme(settings, max_tilt, glide_slope, free_horizontal=True)
         self.reset()
 
     def reset(self) -> None:
@@ -275,7 +277,7 @@ class MpcDescent:
         try:
             self.mpc = DescentMpc(problem.position_L, problem.velocity_L, problem.mass, problem.gravity, limits,
                                   target_L=problem.target_L, settings=self.settings, free_horizontal=True,
-                                  drag=problem.drag)
+                                  drag=problem.drag, programme=self.programme)
         except GuidanceError as exc:
             self.mpc = None
             mission.note(t, f"MPC refused the handover ({exc}): scheduled law flies")

@@ -16,8 +16,8 @@ from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world
 from lander_sim.scenes import load_scene
 from lander_tools.live import views
-from lander_tools.live.bridge import (
-    _SERVICE_FIELDS,
+from lander_tools.live.clientinput import (
+    SERVICE_FIELDS,
     ClientInputError,
     parse_client_message,
     parse_service_request,
@@ -199,7 +199,7 @@ def test_shipped_foxglove_layout_uses_only_what_the_bridge_serves() -> None:
                 topic, field = path["value"].split(".")
                 assert topic == "/live/state" and field.split("[")[0] in views.STATE_SCHEMA["properties"], path
         if pid.startswith("CallService!"):
-            assert cfg["serviceName"] in _SERVICE_FIELDS, pid
+            assert cfg["serviceName"] in SERVICE_FIELDS, pid
             parse_service_request(cfg["serviceName"], cfg["requestPayload"].encode())
         if pid.startswith("Publish!"):
             parse_client_message(cfg["topicName"], cfg["value"].encode())

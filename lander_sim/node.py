@@ -411,6 +411,8 @@ class SimNode(Node):
             # Matched by this node's writer (not just seen in the graph): a start-up handshake
             # can wait for it, so the first state reaches everyone (test/reliability).
             "state_subscribers": str(self._state_subscribers),
+            # The mean wind in force [m/s, world frame], x y z: what a live view shows.
+            "mean_wind_W": " ".join(repr(float(v)) for v in self.sim.mean_wind_W),
         }
         self._pub_diag.publish(diagnostics_array(self.health, t=self.sim.t, name=f"{NODE_NAME}: simulation",
                                                  hardware_id=self.sim.scene.name, extra=extra))
@@ -453,6 +455,8 @@ class SimNode(Node):
             self.sim.set_wind(convert.vector3_to_array(msg.vector))
         except InputError as exc:
             self.reject("wind.non_finite", str(exc))
+            return
+        self.report_now()  # the wind in force is news to a live view
 
     # --- what the services read ---------------------------------------------------------------
 

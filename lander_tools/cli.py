@@ -34,6 +34,7 @@ SUMMARIES: dict[str, str] = {
     "bench": "run a benchmark from bench/",
     "sweep": "run a parameter sweep without ROS (many flights, in parallel)",
     "live": "serve a running flight live: Foxglove WebSocket server and the student page",
+    "view": "replay a recorded flight (bag) in the student page's 3-D view, with a time slider",
     "demand": "set the demand altitude of the running flight (m)",
     "wind": "set the mean wind of the running flight (world frame, m/s)",
     "switch": "switch the running flight's controller (optionally with a parameters file)",

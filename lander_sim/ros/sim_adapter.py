@@ -110,6 +110,11 @@ class SimAdapter:
     def set_wind(self, wind_W: Sequence[float]) -> None:
         self.sim.set_wind(wind_W)
 
+    @property
+    def mean_wind_W(self) -> np.ndarray:
+        """The mean wind in force, world frame [m/s]."""
+        return self.sim.mean_wind_W
+
     def set_stabiliser(self, on: bool) -> None:
         self.sim.set_stabiliser(on)
 

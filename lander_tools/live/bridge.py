@@ -54,6 +54,12 @@ from typing import Any
 from lander_ros.flight_span import sim_report
 from lander_ros.stamps import stamp_to_seconds
 from lander_tools.live import scene, views
+from lander_tools.live.clientinput import (
+    SERVICE_FIELDS,
+    ClientInputError,
+    parse_client_message,
+    parse_service_request,
+)
 from lander_tools.live.link import (
     AUTOPILOT_NODE,
     SIM_NODE,
@@ -72,76 +78,6 @@ AUTOPILOT_PARAMETERS = ("demand_altitude", "controller", "controller_params")
 #: among the subscriptions to wait for (lander_tools.fly.flight.expected_subscribers).
 SUBSCRIBED_TOPICS = ("/lander/state", "/lander/events", "/diagnostics")
 NODE_NAME = "lander_live"
-
-_SERVICE_FIELDS: dict[str, tuple[str, dict[str, Any]]] = {
-    # name -> (ROS type, request fields and their JSON schema types)
-    "/lander/pause": ("std_srvs/srv/Trigger", {}),
-    "/lander/resume": ("std_srvs/srv/Trigger", {}),
-    "/lander/step": ("lander_interfaces/srv/StepSimulation", {"steps": "integer"}),
-    "/lander/reset": ("lander_interfaces/srv/Reset", {"use_seed": "boolean", "seed": "integer"}),
-    "/lander/deploy_parachute": ("std_srvs/srv/Trigger", {}),
-    "/lander/set_stabiliser": ("std_srvs/srv/SetBool", {"data": "boolean"}),
-    "/autopilot/switch_controller": ("lander_interfaces/srv/SwitchController",
-                                     {"controller": "string", "parameters_yaml": "string"}),
-}
-
-
-class ClientInputError(ValueError):
-    """A client's input the bridge cannot forward (malformed, wrong type, unknown topic)."""
-
-
-def _number(obj: dict[str, Any], key: str, what: str) -> float:
-    v = obj.get(key) if isinstance(obj, dict) else None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ClientInputError(f"{what}: field {key!r} must be a number, got {v!r}")
-    return float(v)
-
-
-def parse_client_message(topic: str, data: bytes) -> tuple[str, Any]:
-    """Decode one client-published JSON message: ``(kind, value)`` for the forwarding step.
-
-    Only the shape is checked here (numbers where numbers go); the values (NaN, ranges, lengths)
-    are the nodes' to judge. Python's JSON reader accepts ``NaN``/``Infinity``, so such a value
-    reaches the node and is refused and counted there."""
-    try:
-        obj = json.loads(data)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ClientInputError(f"{topic}: not JSON ({exc})") from None
-    if topic == "/lander/demand_altitude":
-        return "demand", _number(obj, "data", topic)
-    if topic == "/lander/wind":
-        return "wind", [_number(obj, k, topic) for k in ("x", "y", "z")]
-    if topic == "/lander/throttle":
-        vals = obj.get("throttles") if isinstance(obj, dict) else None
-        if not isinstance(vals, list) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in vals):
-            raise ClientInputError(f"{topic}: field 'throttles' must be a list of numbers, got {vals!r}")
-        return "throttle", [float(v) for v in vals]
-    raise ClientInputError(f"{topic}: not a topic clients may publish "
-                           "(/lander/demand_altitude, /lander/wind, /lander/throttle)")
-
-
-def parse_service_request(name: str, payload: bytes) -> dict[str, Any]:
-    """The request fields of a client's service call (JSON object; missing fields keep the ROS default)."""
-    _, fields = _SERVICE_FIELDS[name]
-    try:
-        obj = json.loads(payload) if payload.strip() else {}
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ClientInputError(f"{name}: request is not JSON ({exc})") from None
-    if not isinstance(obj, dict):
-        raise ClientInputError(f"{name}: request must be a JSON object, got {obj!r}")
-    out: dict[str, Any] = {}
-    for key, value in obj.items():
-        kind = fields.get(key)
-        ok = {"integer": isinstance(value, int) and not isinstance(value, bool) and value >= 0,
-              "boolean": isinstance(value, bool), "string": isinstance(value, str)}.get(kind or "", False)
-        if kind is None:
-            raise ClientInputError(f"{name}: unknown field {key!r} (fields: {', '.join(fields) or 'none'})")
-        if not ok:
-            raise ClientInputError(f"{name}: field {key!r} must be a {'non-negative ' if kind == 'integer' else ''}"
-                                   f"{kind}, got {value!r}")
-        out[key] = value
-    return out
-
 
 class LiveBridge:
     """The bridge: a :class:`FlightLink` node plus a foxglove WebSocket server and the page server.
@@ -167,6 +103,12 @@ class LiveBridge:
         self.paused = False
         self.params: dict[str, Any] = {"demand_altitude": None, "controller": "", "controller_params": ""}
         self.tracker: views.SceneTracker | None = None
+        self.history = views.History()
+        #: The mean wind in force [m/s, world]: the scene's until the simulator reports its own
+        #: (``mean_wind_W`` in its /diagnostics, sent at once when a wind is accepted); a reset
+        #: restores the scene's, as the simulator does.
+        self.wind_W: list[float] | None = None
+        self._scene_wind_W: list[float] | None = None
         self._latest: bytes | None = None
         self._latest_published = True
         self._last_out = 0.0
@@ -203,7 +145,7 @@ class LiveBridge:
         if page_port is not None:
             from lander_tools.live.page import PageServer
 
-            self.page = PageServer(host, page_port, self.port)
+            self.page = PageServer(host, page_port, self.port, routes={"/history.json": self.history_json})
             self.page_port = self.page.port
 
         state_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -249,12 +191,15 @@ class LiveBridge:
         from lander_sim.scenes import load_scene
 
         try:
-            scene = self.link.get_parameters(SIM_NODE, ["scene"])["scene"]
-            vehicle = load_scene(scene).vehicle
+            scene = load_scene(self.link.get_parameters(SIM_NODE, ["scene"])["scene"])
         except (NoFlight, TimeoutError, ValueError) as exc:
             self._status(f"flight found but not read yet: {exc}", error=False)
             return
-        self.tracker = views.SceneTracker(Look.of(vehicle))
+        with self._lock:
+            self._scene_wind_W = [float(v) for v in scene.wind_W]
+            if self.wind_W is None:
+                self.wind_W = self._scene_wind_W
+        self.tracker = views.SceneTracker(Look.of(scene.vehicle), fixed_pivot=not scene.translation)
         self.ready = True
 
     def _read_autopilot(self) -> None:
@@ -326,14 +271,23 @@ class LiveBridge:
         t_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         if msg.sequence < self._last_seq and self.tracker is not None:
             self.tracker.reset()  # a new epoch (reset / scene load): new trail
+            with self._lock:
+                self.wind_W = self._scene_wind_W  # a reset restores the scene's mean wind
         self._last_seq = msg.sequence
         record = views.state_record(msg, self.params.get("demand_altitude"), str(self.params.get("controller") or ""),
                                     self.paused)
+        record["controller_params"] = str(self.params.get("controller_params") or "")
+        with self._lock:
+            record["wind_W"] = self.wind_W
         here = None
         if self.tracker is not None:
             p, q = msg.position, msg.orientation
             here = self.tracker.add((p.x, p.y, p.z))
             record["position_S"], record["up_S"] = list(here), list(self.tracker.body_up((q.x, q.y, q.z, q.w)))
+            record.update(views.view_fields(self.tracker, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), msg.throttles,
+                                            bool(msg.parachute_deployed)))
+        with self._lock:
+            self.history.add(record)
         self.ch_state.log(record, log_time=t_ns)
         self.server.broadcast_time(t_ns)
         self.states_out += 1
@@ -368,10 +322,21 @@ class LiveBridge:
         if changed:
             self._publish_parameters()
 
+    def history_json(self) -> bytes:
+        """The graph fields of this epoch's states from t = 0 (:class:`views.History`), as JSON."""
+        with self._lock:
+            records = list(self.history.records)
+        return json.dumps(records).encode()
+
     def _on_diagnostics(self, msg: Any) -> None:
-        paused = (sim_report(msg) or {}).get("paused")
+        report = sim_report(msg) or {}
+        paused = report.get("paused")
         if paused is not None:
             self.paused = paused.lower() in ("true", "1", "yes")
+        wind = views.parse_wind(report.get("mean_wind_W"))
+        if wind is not None:
+            with self._lock:
+                self.wind_W = wind
 
     def _publish_parameters(self) -> None:
         self.server.publish_parameter_values(self.parameter_list())
@@ -478,7 +443,7 @@ class LiveBridge:
         from foxglove import MessageSchema, Schema, Service, ServiceSchema
 
         services = []
-        for name, (ros_type, fields) in _SERVICE_FIELDS.items():
+        for name, (ros_type, fields) in SERVICE_FIELDS.items():
             req = {"type": "object", "properties": {k: {"type": t} for k, t in fields.items()}}
             schema = ServiceSchema(ros_type, request=MessageSchema(
                 encoding="json", schema=Schema(name=ros_type + "_Request", encoding="jsonschema",

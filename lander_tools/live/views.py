@@ -27,7 +27,7 @@ import numpy as np
 from lander_ros.stamps import stamp_to_seconds
 from lander_sim.look import Look, Plume, Trail
 from lander_sim.physics.constants import MARS_RADIUS
-from lander_sim.physics.rotation import body_to_world, matrix_to_quat
+from lander_sim.physics.rotation import body_to_world, matrix_to_quat, quat_to_matrix
 
 #: Phase names of ``LanderState.phase`` (lander_interfaces/msg/LanderState.msg).
 PHASES = ("flying", "landed", "crashed")
@@ -71,6 +71,16 @@ def state_record(msg: Any, demand_altitude: float | None, controller: str, pause
     }
 
 
+def parse_wind(text: str | None) -> list[float] | None:
+    """The simulator's ``mean_wind_W`` diagnostics value (``"x y z"`` [m/s], world frame) as a list;
+    None when absent or not three finite numbers."""
+    try:
+        wind = [float(v) for v in (text or "").split()]
+    except ValueError:
+        return None
+    return wind if len(wind) == 3 and all(math.isfinite(v) for v in wind) else None
+
+
 #: JSON schema of ``/live/state`` (what Foxglove's plot panel offers as fields).
 STATE_SCHEMA: dict[str, Any] = {
     "type": "object",
@@ -95,6 +105,21 @@ STATE_SCHEMA: dict[str, Any] = {
         "paused": {"type": "boolean"},
         "position_S": {"type": "array", "items": {"type": "number"}, "description": "[m], surface frame"},
         "up_S": {"type": "array", "items": {"type": "number"}, "description": "body z axis, surface frame"},
+        "position_W": {"type": "array", "items": {"type": "number"}, "description": "[m], world frame"},
+        "q_SB": {"type": "array", "items": {"type": "number"},
+                 "description": "orientation of base_link in surface (x, y, z, w)"},
+        "tilt": {"type": "number", "description": "[rad] between the body z axis and the local vertical"},
+        "size": {"type": "number", "description": "lander size L [m]"},
+        "plumes_B": {"type": "array", "items": {"type": "array", "items": {"type": "number"}},
+                     "description": "lit plumes: start and end [m], body frame"},
+        "parachute_B": {"type": ["array", "null"], "items": {"type": "number"},
+                        "description": "open canopy: centre and extent [m], body frame"},
+        "fixed_pivot": {"type": "boolean", "description": "the body turns about a fixed pivot"},
+        "q_WB": {"type": "array", "items": {"type": "number"},
+                 "description": "orientation of base_link in mars (x, y, z, w)"},
+        "wind_W": {"type": ["array", "null"], "items": {"type": "number"},
+                   "description": "mean wind in force [m/s], world frame"},
+        "controller_params": {"type": "string", "description": "the controller's parameters in force (YAML)"},
     },
 }
 
@@ -114,6 +139,7 @@ class SceneTracker:
 
     look: Look
     trail_length: int = 2000
+    fixed_pivot: bool = False
     origin_W: np.ndarray | None = None
     R_WS: np.ndarray | None = None  # columns: the surface frame's axes in world coordinates
     trail_S: Trail = field(init=False)
@@ -186,3 +212,71 @@ def plume_pose(plume: Plume) -> tuple[Pose, float]:
     half = math.atan2(s, c) / 2.0
     sh = math.sin(half)
     return Pose(centre, (float(axis[0]) * sh, float(axis[1]) * sh, float(axis[2]) * sh, math.cos(half))), length
+
+
+def view_fields(tracker: SceneTracker, r_W: Sequence[float], q_xyzw: Sequence[float], throttles: Sequence[float],
+                parachute: bool) -> dict[str, Any]:
+    """What the student page's 3-D view draws of one state, besides ``position_S`` and ``up_S``:
+    the body's orientation in the ``surface`` frame, the lit plumes and the open canopy in the
+    body frame (the vehicle's look, :mod:`lander_sim.look`), the tilt and the world position.
+
+    With ``R_WB = R(q)^T`` (dynamics reference eq 12-13: ``R(q)`` maps world to body) and the
+    surface axes ``R_WS``, the body in the surface frame is ``R_SB = R_WS^T R_WB``; its
+    quaternion is given in the ROS/three.js order ``(x, y, z, w)``, read actively. The tilt is
+    ``acos(z_B . r_W / |r_W|)``: the angle between the body z axis and the local vertical.
+    ``tracker`` must have been given a position (:meth:`SceneTracker.add`).
+    """
+    assert tracker.R_WS is not None
+    x, y, z, w = q_xyzw
+    R_WB = quat_to_matrix(np.array([w, x, y, z], dtype=float)).T
+    R_SB = tracker.R_WS.T @ R_WB
+    q = matrix_to_quat(R_SB.T)  # the core's q of a rotation maps its parent to its child: R(q) = R_SB^T
+    r = np.asarray(r_W, dtype=float)
+    tilt = math.acos(float(np.clip(R_WB[:, 2] @ r / np.linalg.norm(r), -1.0, 1.0)))
+    shape = tracker.look
+    plumes = [[*p.start_B, *p.end_B] for p in shape.plumes(throttles) if p.length > 0]
+    canopy = [*shape.parachute_centre_B(), *shape.parachute_extent()] if parachute else None
+    return {"q_SB": [float(q[1]), float(q[2]), float(q[3]), float(q[0])], "tilt": tilt, "size": shape.size,
+            "plumes_B": plumes, "parachute_B": canopy, "fixed_pivot": tracker.fixed_pivot,
+            "position_W": [float(v) for v in r], "q_WB": [float(v) for v in q_xyzw]}
+
+
+#: The graphs' fields of a state record (what :class:`History` keeps of each).
+HISTORY_FIELDS = ("t", "altitude", "climb_rate", "euler_zxz", "throttles", "demand_altitude", "fuel",
+                  "ground_speed", "tilt")
+
+
+@dataclass
+class History:
+    """The graph fields of the states of one epoch, from t = 0, in at most ``capacity`` records.
+
+    Records are kept one per bin of ``spacing`` seconds of sim time (the first state in each);
+    when full, the spacing doubles and the records are binned again, so the whole flight stays
+    drawn at one resolution whatever its length (a page that opens late draws the flight from
+    its start): consecutive records are ``spacing`` apart to within one state interval.
+    """
+
+    capacity: int = 4000
+    records: list[dict[str, Any]] = field(default_factory=list)
+    spacing: float = 0.0  # [s] bin width; 0: every state kept
+
+    def _bin(self, t: float) -> float:
+        return math.floor(t / self.spacing + 1e-9) if self.spacing > 0 else t
+
+    def add(self, record: dict[str, Any]) -> None:
+        if self.records and record["t"] < self.records[-1]["t"]:
+            self.clear()  # a new epoch (reset)
+        if self.records and self._bin(record["t"]) == self._bin(self.records[-1]["t"]):
+            return
+        self.records.append({k: record.get(k) for k in HISTORY_FIELDS})
+        while len(self.records) > self.capacity:
+            span = self.records[-1]["t"] - self.records[0]["t"]
+            self.spacing = 2.0 * self.spacing if self.spacing > 0 else 2.0 * span / (len(self.records) - 1)
+            kept = [self.records[0]]
+            for r in self.records[1:]:
+                if self._bin(r["t"]) != self._bin(kept[-1]["t"]):
+                    kept.append(r)
+            self.records = kept
+
+    def clear(self) -> None:
+        self.records, self.spacing = [], 0.0

@@ -16,8 +16,8 @@ from lander_sim.physics.constants import MARS_RADIUS
 from lander_sim.physics.rotation import body_to_world
 from lander_sim.scenes import load_scene
 from lander_tools.live import views
-from lander_tools.live.bridge import (
-    _SERVICE_FIELDS,
+from lander_tools.live.clientinput import (
+    SERVICE_FIELDS,
     ClientInputError,
     parse_client_message,
     parse_service_request,
@@ -73,6 +73,53 @@ def test_plumes_scale_with_throttle_along_the_exhaust() -> None:
             np.testing.assert_allclose(pose.position, (np.asarray(plume.start_B) + plume.end_B) / 2, atol=1e-12)
 
 
+def test_view_fields_give_the_body_in_the_surface_frame_its_tilt_and_its_lit_plumes() -> None:
+    """The 3-D view's orientation q_SB, read actively, carries the body axes into the surface frame:
+    its z axis is body_up (computed through body_to_world, another path); the tilt is the angle of
+    that axis from the local vertical, which at the anchor is the surface z axis."""
+    scene = load_scene("hover-canted")
+    q = scene.initial_state[6:10] / np.linalg.norm(scene.initial_state[6:10])
+    r_W = scene.initial_state[0:3]
+    tr = views.SceneTracker(Look.of(scene.vehicle))
+    tr.add(r_W)
+    q_xyzw = (q[1], q[2], q[3], q[0])
+    f = views.view_fields(tr, r_W, q_xyzw, [0.0, 0.5, 1.0, 0.0], parachute=True)
+    up_S = np.array(tr.body_up(q_xyzw))
+    np.testing.assert_allclose(rotate(tuple(f["q_SB"]), np.array([0.0, 0.0, 1.0])), up_S, atol=1e-12)
+    for axis in np.eye(3):  # every body axis, not only z
+        np.testing.assert_allclose(tr.R_WS @ rotate(tuple(f["q_SB"]), axis), body_to_world(q, axis), atol=1e-12)
+    assert f["tilt"] == pytest.approx(np.arccos(up_S[2]), abs=1e-9)
+    assert f["q_WB"] == pytest.approx(list(q_xyzw))
+    # Two lit plumes, each 2 L x throttle long; the canopy at its place in the look.
+    lengths = sorted(float(np.linalg.norm(np.subtract(p[3:], p[:3]))) for p in f["plumes_B"])
+    assert lengths == pytest.approx([PLUME_LENGTH_PER_SIZE * scene.vehicle.size * u for u in (0.5, 1.0)])
+    look = Look.of(scene.vehicle)
+    assert f["parachute_B"] == pytest.approx([*look.parachute_centre_B(), *look.parachute_extent()])
+    assert views.view_fields(tr, r_W, q_xyzw, [0.0] * 4, parachute=False)["parachute_B"] is None
+    # A body turned by a about the surface x axis at the anchor is tilted by a.
+    for a in (0.0, 0.3, 1.2, 3.0):
+        R_SB = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        from lander_sim.physics.rotation import matrix_to_quat
+
+        qc = matrix_to_quat((tr.R_WS @ R_SB).T)  # the core's q maps world to body: R(q) = R_WB^T
+        g = views.view_fields(tr, r_W, (qc[1], qc[2], qc[3], qc[0]), [0.0] * 4, parachute=False)
+        assert g["tilt"] == pytest.approx(a, abs=1e-9)
+
+
+def test_history_keeps_the_epoch_from_t0_within_its_capacity_and_restarts_on_a_reset() -> None:
+    h = views.History(capacity=100)
+    dt = 0.02
+    for k in range(5000):  # 100 s of states at 50 Hz
+        h.add({"t": k * dt, "altitude": 500.0 + k, "climb_rate": 0.0})
+    t = [r["t"] for r in h.records]
+    assert t[0] == 0.0 and len(t) <= 100 and t[-1] >= 100.0 - 2 * h.spacing
+    gaps = np.diff(t)  # even spacing: the whole flight at one resolution, to within one state interval
+    assert h.spacing - dt - 1e-9 <= gaps.min() and gaps.max() <= h.spacing + dt + 1e-9
+    assert set(h.records[0]) == set(views.HISTORY_FIELDS)
+    h.add({"t": 0.0, "altitude": 550.0})  # sim time going back: a reset, a new epoch
+    assert [r["t"] for r in h.records] == [0.0] and h.spacing == 0.0
+
+
 def test_trail_is_bounded_and_reset_starts_a_new_one() -> None:
     tr = views.SceneTracker(Look(1.0), trail_length=5)
     for k in range(8):
@@ -126,7 +173,7 @@ def test_page_server_serves_only_the_page_files_and_the_ws_port() -> None:
     page = PageServer("127.0.0.1", 0, ws_port=12345)
     try:
         base = f"http://127.0.0.1:{page.port}"
-        assert json.loads(urllib.request.urlopen(f"{base}/config.json").read()) == {"ws_port": 12345}
+        assert json.loads(urllib.request.urlopen(f"{base}/config.json").read()) == {"mode": "live", "ws_port": 12345}
         assert urllib.request.urlopen(f"{base}/").read() == (WEB_DIR / "index.html").read_bytes()
         assert b"foxglove.sdk.v1" in urllib.request.urlopen(f"{base}/foxglove.js").read()
         for bad in ("/../bridge.py", "/%2e%2e/bridge.py", "/nope.js"):
@@ -152,7 +199,7 @@ def test_shipped_foxglove_layout_uses_only_what_the_bridge_serves() -> None:
                 topic, field = path["value"].split(".")
                 assert topic == "/live/state" and field.split("[")[0] in views.STATE_SCHEMA["properties"], path
         if pid.startswith("CallService!"):
-            assert cfg["serviceName"] in _SERVICE_FIELDS, pid
+            assert cfg["serviceName"] in SERVICE_FIELDS, pid
             parse_service_request(cfg["serviceName"], cfg["requestPayload"].encode())
         if pid.startswith("Publish!"):
             parse_client_message(cfg["topicName"], cfg["value"].encode())
@@ -161,7 +208,7 @@ def test_shipped_foxglove_layout_uses_only_what_the_bridge_serves() -> None:
     assert panels["3D!lander"]["followTf"] == "base_link"
 
 
-@pytest.mark.parametrize("name", ["live", "demand", "wind", "switch", "pause", "resume", "step", "reset", "topics",
+@pytest.mark.parametrize("name", ["live", "view", "demand", "wind", "switch", "pause", "resume", "step", "reset", "topics",
                                   "echo"])
 def test_each_new_command_explains_itself(capsys: pytest.CaptureFixture[str], name: str) -> None:
     from lander_tools import cli
@@ -170,7 +217,7 @@ def test_each_new_command_explains_itself(capsys: pytest.CaptureFixture[str], na
         cli.main([name, "--help"])
     out = capsys.readouterr().out
     assert exc.value.code == 0 and out.startswith(f"usage: lander {name}")
-    if name != "live":
+    if name not in ("live", "view"):
         assert "--wait S" in out
 
 

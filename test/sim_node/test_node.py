@@ -219,6 +219,22 @@ def test_step_advances_exactly_n_dt_and_reset_restores_the_initial_state_bit_for
     assert s1.sequence == 1
 
 
+def test_the_reports_carry_the_mean_wind_in_force_and_a_reset_restores_the_scenes(probe, scenes):
+    """``mean_wind_W`` (x y z, m/s, world frame) in the diagnostics: what a live view shows as the
+    wind in force, whoever set it. A refused wind leaves it; a reset restores the scene's."""
+    _load(probe, scenes["vertical"])
+    scene_wind = " ".join(repr(float(v)) for v in load_scene(str(scenes["vertical"])).wind_W)
+    n = len(probe.diagnostics)
+    probe.send_wind(5.0, -2.0, 1.0)
+    probe.wait_for(lambda: any(d.get("mean_wind_W") == "5.0 -2.0 1.0" for d in probe.diagnostics[n:]), 10.0,
+                   "a report of the wind set")
+    probe.send_wind(math.nan, 0.0, 0.0)  # refused: the wind in force stays
+    probe.wait_for(lambda: int(probe.diagnostics[-1].get("rejected.wind.non_finite", "0")) >= 1, 10.0, "the refusal")
+    assert probe.diag_after(len(probe.diagnostics))["mean_wind_W"] == "5.0 -2.0 1.0"
+    probe.call("reset", Reset.Request())
+    probe.wait_for(lambda: probe.diagnostics[-1].get("mean_wind_W") == scene_wind, 10.0, "the scene's wind after the reset")
+
+
 def test_each_reset_begins_the_next_flight_number_in_the_pause_answer_and_the_reports(probe, scenes):
     """The flight number tells a report of the old flight from one of the new (lander record
     --whole-flight drops the old flight's reports sent across its reset)."""

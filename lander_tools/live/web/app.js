@@ -1,16 +1,21 @@
-// The student page: graphs, settings, manual throttle and a 2-D view of a live flight, all over
-// the Foxglove protocol to `lander live` (docs/live.md). Every control goes through the same
-// server doors a Foxglove client uses, so the nodes validate and count it.
-"use strict";
+// The student page: a 3-D view (view3d.js, three.js), instruments, graphs from t = 0, settings and
+// manual throttle of a live flight, all over the Foxglove protocol to `lander live`; or, served by
+// `lander view BAG`, the replay of a recorded flight with a time slider (docs/live.md). Every
+// control goes through the same server doors a Foxglove client uses, so the nodes validate and
+// count it; every field shows the value in force in the flight, whoever set it (CLI, Foxglove,
+// another page), except while the user is typing in it.
+import { View3D } from "./view3d.js";
 
-const WINDOW_S = 60;          // seconds of sim time shown in the graphs
-const MANUAL_RATE_HZ = 20;
-const MAX_POINTS = 600;       // points drawn per line (the samples are decimated for drawing only)    // manual throttle resend rate (the sim's command hold is 0.5 s sim time)
+const MANUAL_RATE_HZ = 20;    // manual throttle resend rate (the sim's command hold is 0.5 s sim time)
+const MAX_POINTS = 600;       // points drawn per line (the samples are decimated for drawing only)
+const MAX_SAMPLES = 8000;     // samples kept for the graphs: past it every other one is dropped
+const RAD2DEG = 180 / Math.PI;
 const $ = (id) => document.getElementById(id);
-const samples = [];           // state records in the graph window
+let samples = [];             // graph records of this epoch, from t = 0
 // Page-side counters, read by the browser test: states received and when (wall ms).
-window.liveStats = { states: 0, times: [], last: null, messages: [] };
+window.liveStats = { states: 0, times: [], last: null, messages: [], frames: 0 };
 let lastRecord = null;
+let view = null;
 let manualThrottle = 0.0, manualTilt = 0.0;
 
 function say(text, error) {
@@ -21,15 +26,28 @@ function say(text, error) {
 
 async function start() {
   const cfg = await (await fetch("config.json")).json();
+  view = new View3D($("view3d"));
+  window.view3d = view;
+  for (const el of document.querySelectorAll("input[name=camera]")) el.onchange = () => view.setMode(el.value);
+  window.addEventListener("resize", () => view.resize());
+  if (cfg.mode === "replay") await startReplay();
+  else startLive(cfg);
+  requestAnimationFrame(draw);
+}
+
+// --- live ----------------------------------------------------------------------------------------
+
+function startLive(cfg) {
   const client = new FoxgloveClient(`ws://${location.hostname}:${cfg.ws_port}`);
   window.client = client;
-  client.onOpen = () => { $("connection").textContent = "connected"; };
+  client.onOpen = () => { $("connection").textContent = "connected"; loadHistory(); };
   client.onClose = () => { $("connection").textContent = "disconnected (retrying)"; };
   client.onStatus = (msg) => say(msg.message, msg.level >= 2);
   client.onParameters = (params) => {
     for (const p of params) {
-      if (p.name === "controller" && document.activeElement !== $("controller-input")) $("controller-input").value = p.value;
-      if (p.name === "controller_params" && document.activeElement !== $("params-input")) $("params-input").value = p.value;
+      if (p.name === "controller") reflect("controller-input", p.value);
+      if (p.name === "controller_params") reflect("params-input", p.value);
+      if (p.name === "demand_altitude") reflect("demand-input", p.value);
     }
   };
   client.subscribeJson("/live/state", onState);
@@ -38,23 +56,70 @@ async function start() {
                                                     e.kind === "INPUT_REJECTED" || e.kind === "CRASHED"));
   setTimeout(() => client.getParameters([]), 500);
   wireControls(client);
-  requestAnimationFrame(draw);
+}
+
+// The flight's graph fields from t = 0 (the bridge keeps them): the page draws the whole flight
+// however late it opens.
+async function loadHistory() {
+  try {
+    const past = await (await fetch("history.json")).json();
+    const first = samples.length ? samples[0].t : Infinity;
+    samples = past.filter((r) => r.t < first).concat(samples);
+    window.liveStats.history = past.length;
+  } catch (e) { say(`history: ${e.message}`, true); }
 }
 
 function onState(rec) {
   const st = window.liveStats;
   st.states += 1; st.last = rec; st.times.push(performance.now());
   if (st.times.length > 600) st.times.shift();
-  if (samples.length && rec.t < samples[samples.length - 1].t) samples.length = 0;  // reset: a new epoch
+  ingest(rec);
+  display(rec);
+}
+
+// A record into the graphs and the 3-D view.
+function ingest(rec) {
+  if (samples.length && rec.t < samples[samples.length - 1].t) samples = [];  // reset: a new epoch
   samples.push(rec);
-  while (samples.length && samples[0].t < rec.t - WINDOW_S) samples.shift();
+  if (samples.length > MAX_SAMPLES) samples = samples.filter((_, i) => i % 2 === 0 || i === samples.length - 1);
   lastRecord = rec;
+  view.update(rec);
+}
+
+// Fixed decimals; a value that rounds to zero reads 0, never -0.
+const fmt = (v, d) => (v === null || v === undefined || !isFinite(v) ? "-" : (Math.abs(v) < 0.5 * 10 ** -d ? 0 : v).toFixed(d));
+const vec = (a, d, k = 1) => (a ? a.map((v) => fmt(k * v, d)).join(" ") : "-");
+
+// A field shows the value in force unless the user is typing in it.
+function reflect(id, value) {
+  const el = $(id);
+  if (value === null || value === undefined || document.activeElement === el) return;
+  const text = String(value);
+  if (el.value !== text) el.value = text;
+}
+
+function display(rec) {
   $("simtime").textContent = rec.t.toFixed(2);
   $("altitude").textContent = rec.altitude.toFixed(2);
   $("climb").textContent = rec.climb_rate.toFixed(3);
   $("demand").textContent = rec.demand_altitude === null ? "-" : rec.demand_altitude.toFixed(1);
   $("controller").textContent = rec.controller || "none";
   $("paused").textContent = rec.paused ? "PAUSED" : "";
+  $("i-phase").textContent = rec.phase;
+  $("i-fuel").textContent = fmt(rec.fuel, 2);
+  $("i-ground-speed").textContent = fmt(rec.ground_speed, 2);
+  $("i-tilt").textContent = fmt(rec.tilt === undefined ? null : rec.tilt * RAD2DEG, 1);
+  $("i-rates").textContent = vec(rec.omega_B, 1, RAD2DEG);
+  $("i-wind").textContent = vec(rec.wind_W, 1);
+  $("i-throttles").textContent = vec(rec.throttles, 2);
+  $("i-stabiliser").textContent = rec.stabiliser ? "on" : "off";
+  $("i-parachute").textContent = rec.parachute ? "open" : "stowed";
+  $("i-controller").textContent = rec.controller || "none";
+  $("i-gains").textContent = rec.controller_params || (rec.controller ? "its defaults" : "-");
+  reflect("demand-input", rec.demand_altitude);
+  reflect("controller-input", rec.controller);
+  reflect("params-input", rec.controller_params);
+  if (rec.wind_W) ["wind-x", "wind-y", "wind-z"].forEach((id, i) => reflect(id, rec.wind_W[i]));
 }
 
 function wireControls(client) {
@@ -100,89 +165,158 @@ function wireControls(client) {
   }, 1000 / MANUAL_RATE_HZ);
 }
 
-// --- drawing -----------------------------------------------------------------------------------
+// --- replay (lander view BAG) --------------------------------------------------------------------
+
+const replay = { records: [], index: -1, playing: false, playT: 0, wall: 0 };
+window.replay = replay;
+
+async function startReplay() {
+  document.body.classList.add("replay");
+  $("mode-name").textContent = "replay";
+  const data = await (await fetch("replay.json")).json();
+  replay.records = data.records;
+  $("connection").textContent = `scene ${data.scene}, ${data.records.length} states` + (data.note ? ` (${data.note})` : "");
+  const slider = $("replay-slider");
+  slider.max = String(data.records.length - 1);
+  slider.oninput = () => { replay.playing = false; $("play").textContent = "play"; show(Number(slider.value)); };
+  $("play").onclick = () => {
+    if (replay.index >= replay.records.length - 1) show(0);
+    replay.playing = !replay.playing;
+    replay.playT = replay.records[Math.max(0, replay.index)].t;
+    replay.wall = performance.now();
+    $("play").textContent = replay.playing ? "pause" : "play";
+  };
+  show(0);
+}
+
+// Show the flight up to record i: forward, the records since the last one shown; back, from the start.
+function show(i) {
+  const recs = replay.records;
+  i = Math.max(0, Math.min(recs.length - 1, i));
+  if (i < replay.index) { samples = []; view.clearTrail(); view.last = null; replay.index = -1; }
+  for (let k = replay.index + 1; k <= i; k++) ingest(recs[k]);
+  replay.index = i;
+  const rec = recs[i];
+  window.liveStats.states = i + 1; window.liveStats.last = rec;
+  display(rec);
+  $("replay-slider").value = String(i);
+  $("replay-time").textContent = `t = ${rec.t.toFixed(2)} / ${recs[recs.length - 1].t.toFixed(2)} s`;
+}
+
+function advanceReplay() {
+  if (!replay.playing) return;
+  const now = performance.now();
+  replay.playT += (now - replay.wall) / 1000 * Number($("replay-speed").value);
+  replay.wall = now;
+  const recs = replay.records;
+  let i = replay.index;
+  while (i + 1 < recs.length && recs[i + 1].t <= replay.playT) i++;
+  if (i !== replay.index) show(i);
+  if (i >= recs.length - 1) { replay.playing = false; $("play").textContent = "play"; }
+}
+
+// --- graphs: rounded ticks, from t = 0 -----------------------------------------------------------
+
+// A tick spacing of 1, 2 or 5 x 10^k giving about `n` intervals over `span`.
+function niceStep(span, n) {
+  const raw = span / n, p = 10 ** Math.floor(Math.log10(raw)), m = raw / p;
+  return (m < 1.5 ? 1 : m < 3 ? 2 : m < 7 ? 5 : 10) * p;
+}
+
+// The axis of the values lo..hi: bounds on whole ticks and labels with just the decimals the step
+// needs (so no two are equal). A flat range (hi = lo) is widened by 1 % of the value (at least
+// 0.5) each side: the value then sits mid-axis with distinct labels above and below.
+function axis(lo, hi, n = 4) {
+  if (!(hi - lo > 1e-9 * Math.max(1, Math.abs(lo), Math.abs(hi)))) {
+    const pad = Math.max(0.01 * Math.abs(lo), 0.5);
+    lo -= pad; hi += pad;
+  }
+  const step = niceStep(hi - lo, n);
+  const digits = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+  const a = Math.floor(lo / step + 1e-9) * step, b = Math.ceil(hi / step - 1e-9) * step;
+  const ticks = [];
+  for (let v = a; v <= b + step / 2; v += step) ticks.push({ value: v, label: (Math.abs(v) < step / 2 ? 0 : v).toFixed(digits) });
+  return { lo: a, hi: b, step, ticks };
+}
+window.axes = { niceStep, axis };
+// The sim time span of the graphs' samples [s] (the browser test: from t = 0 however late the page opened).
+window.samplesSpan = () => (samples.length ? [samples[0].t, samples[samples.length - 1].t] : null);
 
 const COLORS = ["#ffb070", "#70c0ff", "#90e090", "#e090e0", "#e0e070", "#f07070"];
+window.graphBoxes = {};       // per graph: where its title and legend entries were drawn (browser test)
 
 function plot(canvas, title, series, unit) {
   const ctx = canvas.getContext("2d");
-  const W = canvas.width, H = canvas.height, L = 52, B = 18;
+  const W = canvas.width, H = canvas.height, L = 56, B = 30, T = 22, R = 22;
   ctx.clearRect(0, 0, W, H);
-  ctx.fillStyle = "#ccc"; ctx.font = "12px sans-serif";
-  ctx.fillText(`${title} [${unit}]`, L, 13);
+  ctx.font = "12px sans-serif"; ctx.textBaseline = "alphabetic";
+  const head = `${title} [${unit}]`;
+  ctx.fillStyle = "#ccc"; ctx.fillText(head, 6, 14);
+  // The legend starts after the title and its unit, so it never covers them.
+  const boxes = { title: [6, 2, ctx.measureText(head).width, 14], legend: [] };
+  let lx = 6 + boxes.title[2] + 18;
+  series.forEach((s, k) => {
+    const w = ctx.measureText(s.name).width;
+    ctx.fillStyle = s.color || COLORS[k % COLORS.length];
+    ctx.fillRect(lx, 8, 10, 3); ctx.fillText(s.name, lx + 13, 14);
+    boxes.legend.push([lx, 2, w + 13, 14]);
+    lx += w + 26;
+  });
+  window.graphBoxes[canvas.id] = boxes;
   if (samples.length < 2) return;
   const t0 = samples[0].t, t1 = Math.max(samples[samples.length - 1].t, t0 + 1e-3);
   let lo = Infinity, hi = -Infinity;
-  const step = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
-  for (const s of series) for (let i = 0; i < samples.length; i += step) { const v = s.get(samples[i]); if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }
-  if (!isFinite(lo)) return;
-  if (hi - lo < 1e-6) { lo -= 0.5; hi += 0.5; }
-  const pad = 0.05 * (hi - lo); lo -= pad; hi += pad;
-  const x = (t) => L + (W - L - 6) * (t - t0) / (t1 - t0);
-  const y = (v) => 18 + (H - B - 18) * (hi - v) / (hi - lo);
-  ctx.strokeStyle = "#3a3d45"; ctx.beginPath(); ctx.moveTo(L, 18); ctx.lineTo(L, H - B); ctx.lineTo(W, H - B); ctx.stroke();
-  ctx.fillText(hi.toPrecision(5), 2, 24); ctx.fillText(lo.toPrecision(5), 2, H - B);
-  ctx.fillText(`t = ${t0.toFixed(1)} .. ${t1.toFixed(1)} s`, W - 150, H - 4);
-  // At most ~MAX_POINTS points per line: drawing every state of a fast flight would cost the
-  // page (and, headless, the machine) more than the data is worth.
   const stride = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
+  for (const s of series) for (let i = 0; i < samples.length; i += stride) { const v = s.get(samples[i]); if (v !== null && v !== undefined && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }
+  if (!isFinite(lo)) return;
+  const ya = axis(lo, hi), xa = axis(Math.min(0, t0), t1, 6);
+  const x = (t) => L + (W - L - R) * (t - xa.lo) / (xa.hi - xa.lo);
+  const y = (v) => T + (H - B - T) * (ya.hi - v) / (ya.hi - ya.lo);
+  ctx.strokeStyle = "#2a2d35"; ctx.fillStyle = "#aaa"; ctx.textAlign = "right";
+  for (const tk of ya.ticks) {
+    ctx.beginPath(); ctx.moveTo(L, y(tk.value)); ctx.lineTo(W - R, y(tk.value)); ctx.stroke();
+    ctx.fillText(tk.label, L - 4, y(tk.value) + 4);
+  }
+  ctx.textAlign = "center";
+  for (const tk of xa.ticks) {
+    ctx.beginPath(); ctx.moveTo(x(tk.value), T); ctx.lineTo(x(tk.value), H - B); ctx.stroke();
+    ctx.fillText(tk.label, x(tk.value), H - B + 14);
+  }
+  ctx.fillText("t [s]", W - 30, H - 3);
+  ctx.textAlign = "left";
+  window.graphBoxes[canvas.id].yLabels = ya.ticks.map((tk) => tk.label);
+  window.graphBoxes[canvas.id].xLabels = xa.ticks.map((tk) => tk.label);
   series.forEach((s, k) => {
     ctx.strokeStyle = s.color || COLORS[k % COLORS.length]; ctx.beginPath();
     let moved = false;
     for (let i = 0; i < samples.length; i += stride) {
       const r = samples[i];
-      const v = s.get(r); if (v === null || !isFinite(v)) continue;
+      const v = s.get(r); if (v === null || v === undefined || !isFinite(v)) continue;
       if (!moved) { ctx.moveTo(x(r.t), y(v)); moved = true; } else ctx.lineTo(x(r.t), y(v));
     }
     ctx.stroke();
-    ctx.fillStyle = ctx.strokeStyle; ctx.fillText(s.name, L + 130 + 70 * k, 13);
   });
 }
 
-function drawView(canvas) {
-  // 2-D side view in the local surface frame: x horizontal, altitude up; the body tilted as its
-  // z axis (up_S), plumes scaled by throttle.
-  const ctx = canvas.getContext("2d");
-  const W = canvas.width, H = canvas.height;
-  ctx.clearRect(0, 0, W, H);
-  const r = lastRecord; if (!r) return;
-  const span = Math.max(50, 1.3 * Math.max(r.altitude, r.demand_altitude || 0));
-  const scale = (H - 30) / span;
-  const gx = W / 2, gy = H - 15;
-  ctx.fillStyle = "#7a3b20"; ctx.fillRect(0, gy, W, 15);
-  if (r.demand_altitude !== null) {
-    ctx.strokeStyle = "#5f5"; ctx.setLineDash([6, 4]); ctx.beginPath();
-    ctx.moveTo(0, gy - r.demand_altitude * scale); ctx.lineTo(W, gy - r.demand_altitude * scale); ctx.stroke();
-    ctx.setLineDash([]);
-  }
-  ctx.strokeStyle = "#3a8"; ctx.beginPath();
-  const stride = Math.max(1, Math.ceil(samples.length / MAX_POINTS));
-  samples.forEach((s, i) => { if (i % stride) return; const px = gx + ((s.position_S ? s.position_S[0] : 0) - (r.position_S ? r.position_S[0] : 0)) * scale, py = gy - s.altitude * scale; if (i) ctx.lineTo(px, py); else ctx.moveTo(px, py); });
-  ctx.stroke();
-  const ang = r.up_S ? Math.atan2(r.up_S[0], r.up_S[2]) : 0;
-  ctx.save(); ctx.translate(gx, gy - r.altitude * scale); ctx.rotate(ang);
-  const size = 14;
-  ctx.fillStyle = "#ddd"; ctx.fillRect(-size, -size * 0.6, 2 * size, 1.2 * size);
-  const n = r.throttles.length;
-  r.throttles.forEach((u, i) => {
-    const px = -size + (2 * size) * (i + 0.5) / n;
-    ctx.fillStyle = "#ff8020"; ctx.fillRect(px - 3, size * 0.6, 6, 40 * u);
-  });
-  if (r.parachute) { ctx.strokeStyle = "#eef"; ctx.beginPath(); ctx.arc(0, -3 * size, 2 * size, Math.PI, 0); ctx.stroke(); }
-  ctx.restore();
-  ctx.fillStyle = "#ccc"; ctx.fillText(`view: ${span.toFixed(0)} m tall, phase ${r.phase}`, 8, 14);
+const GRAPH_PERIOD_MS = 100;  // the graphs are redrawn 10 times a second, the 3-D view every frame
+let lastGraphs = -Infinity;
+
+function draw(now) {
+  window.liveStats.frames += 1;
+  advanceReplay();
+  view.render();
+  if (now - lastGraphs >= GRAPH_PERIOD_MS) { lastGraphs = now; drawGraphs(); }
+  requestAnimationFrame(draw);
 }
 
-function draw() {
+function drawGraphs() {
   plot($("g-altitude"), "altitude", [
     { name: "altitude", get: (r) => r.altitude },
     { name: "demand", get: (r) => r.demand_altitude, color: "#5f5" }], "m");
   plot($("g-climb"), "climb rate", [{ name: "climb", get: (r) => r.climb_rate }], "m/s");
-  plot($("g-attitude"), "ZXZ Euler angles", ["phi", "theta", "psi"].map((n, i) => ({ name: n, get: (r) => r.euler_zxz[i] * 180 / Math.PI })), "deg");
+  plot($("g-attitude"), "ZXZ Euler angles", ["phi", "theta", "psi"].map((n, i) => ({ name: n, get: (r) => r.euler_zxz[i] * RAD2DEG })), "deg");
   const n = lastRecord ? lastRecord.throttles.length : 0;
   plot($("g-throttle"), "throttles", Array.from({ length: n }, (_, i) => ({ name: `#${i + 1}`, get: (r) => r.throttles[i] })), "0..1");
-  drawView($("view"));
-  requestAnimationFrame(draw);
 }
 
 start().catch((e) => say(`cannot start: ${e.message}`, true));

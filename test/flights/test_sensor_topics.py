@@ -154,3 +154,25 @@ def test_a_scene_without_sensors_publishes_none(tmp_path: Path) -> None:
     assert not [t for t in got if t.startswith("/lander/sensors/")], sorted(got)
     span = check_span(bag, DURATION, lockstep=True, sim_only_events=False)
     assert not span.end.has_sensors and not any(t in span.end.counts for t in SENSOR_TOPICS)
+
+
+def test_record_whole_flight_records_the_sensor_topics_the_sim_publishes(tmp_path: Path) -> None:
+    """`lander record --whole-flight` beside a sim started as `ros2 run` starts it: the sensors the
+    sim publishes are waited for, recorded from t = 0 and checked against FLIGHT_ENDED like its other
+    outputs. From 10 km only the IMU and the star tracker are in range (altimeter and Doppler: 4 km)."""
+    import rosutil
+
+    from .flightcheck import REPO, lander
+
+    bag = tmp_path / "whole"
+    args = ["-m", "lander_sim.node", "--ros-args", "-p", "scene:=landing-sensors", "-p", "speed:=0.0",
+            "-p", "command_timeout:=0.0"]
+    with rosutil.ChildProcess(args, cwd=REPO, name="lander_sim") as sim:
+        r = lander("record", "-o", str(bag), "--whole-flight", "--duration", str(DURATION), "--wait", "30", timeout=90.0)
+        assert r.returncode == 0, r.stdout + r.stderr + sim.output()
+    assert f"complete: the whole flight, t = 0 to {DURATION} s (time-limit)" in r.stdout, r.stdout
+    span = check_span(bag, DURATION)
+    for key in ("imu", "star_tracker"):
+        topic = f"/lander/sensors/{key}"
+        assert span.counts[topic] == span.end.counts[topic] == math.floor(DURATION * RATES[key] + 1e-9) + 1, topic
+    assert span.end.counts["/lander/sensors/altimeter"] == 0 and not _raw(bag).get("/lander/sensors/altimeter")

@@ -47,8 +47,8 @@ def _scene(tmp_path: Path) -> Path:
     return path
 
 
-def _fly(scene: str, bag: Path, topics: tuple[str, ...] | None = None):
-    plan = FlightPlan(scene=scene, duration=DURATION, speed=0.0, record=bag, topics=topics)
+def _fly(scene: str, bag: Path, topics: tuple[str, ...] | None = None, **sim_params: object):
+    plan = FlightPlan(scene=scene, duration=DURATION, speed=0.0, record=bag, topics=topics, sim_params=sim_params)
     with open(os.devnull, "w") as devnull:
         result = fly(plan, out=devnull)
     assert result.exit_code == 0 and result.outcome == "time-limit", summary(result)
@@ -145,6 +145,17 @@ def test_the_same_scene_and_seed_give_byte_identical_sensor_topics(two_flights) 
         ra, rb = [m[1] for m in a[topic]], [m[1] for m in b[topic]]
         assert ra, f"{topic}: no message"
         assert ra == rb, f"{topic}: the two flights differ from message {next(i for i, (x, y) in enumerate(zip(ra, rb)) if x != y)}"
+
+
+def test_the_sim_seed_draws_other_noise_over_the_same_flight(two_flights, tmp_path: Path) -> None:
+    """The node's ``seed`` re-seeds the sensors: other measurements, while the flight (on the truth,
+    no gusts in this scene) is the same bits."""
+    bag = tmp_path / "seed5"
+    _fly(str(two_flights[0].parent / "landing-sensors-500m.yaml"), bag, seed=5)
+    a, b = _raw(two_flights[0]), _raw(bag)
+    assert [m[1] for m in a["/lander/state"]] == [m[1] for m in b["/lander/state"]]
+    for topic in SENSOR_TOPICS:
+        assert len(a[topic]) == len(b[topic]) and all(x[1] != y[1] for x, y in zip(a[topic], b[topic])), topic
 
 
 def test_a_scene_without_sensors_publishes_none(tmp_path: Path) -> None:

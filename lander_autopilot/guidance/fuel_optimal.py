@@ -508,9 +508,9 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
                       else FixedTimeProgram(problem, MIDDLE_STEPS, backend, refine=False))
     coarse_program = (middle_program if middle_program.N <= SEARCH_STEPS
                       else FixedTimeProgram(problem, SEARCH_STEPS, backend, refine=False))
-    coarse, middle, fine = _Search(coarse_program), _Search(middle_program), _Search(fine_program)
-    if middle_program is fine_program:
-        middle = fine
+    # one search (one cache) a programme: where the caller's is the middle or coarse one, so is its search
+    searches = {id(p): _Search(p) for p in (fine_program, middle_program, coarse_program)}
+    coarse, middle, fine = (searches[id(p)] for p in (coarse_program, middle_program, fine_program))
 
     def tol(t: float) -> float:
         return t_tol * max(1.0, t)

@@ -160,3 +160,13 @@ def test_a_search_that_ends_on_the_middle_programme_keeps_its_tolerance():
     assert abs(fast.final_time - exact.final_time) <= (MIDDLE_SHIFT + 1e-3 * EDGE_SHARE + 1e-5) * exact.final_time
     assert fast.fuel == pytest.approx(exact.fuel, rel=FUEL_AGREEMENT)
     assert fast.solve_count < exact.solve_count
+
+
+def test_a_search_on_the_coarse_programme_itself_ends_there():
+    """Where the caller's programme is the coarse one (the de-orbit MPC's 20 nodes), the search is
+    the coarse stage of the 60-node search and nothing more: no more solves than that search, and
+    the same final time as its coarse stage would give it."""
+    problem = _problems()["chute handover"]
+    own, fine = solve(problem, steps=20, t_tol=1e-3), solve(problem, steps=60, t_tol=1e-3)
+    assert own.solve_count < fine.solve_count
+    assert len(own.t) == 21 and fine.final_time <= own.final_time * (1 + 1e-9)

@@ -12,8 +12,8 @@ use the same function as their fuel yardstick. This bench takes the handover sta
   sweep flies it (:func:`lander_tools.sweep.flight.flown_periods`) to the same instant, the problem
   as the sweep's yardstick poses it (:func:`lander_tools.sweep.flight.yardstick_problem`),
 
-and solves each with the MPC's reference settings (60 nodes, final time to 1e-3 s:
-``descent_mpc.REFERENCE_TIME_TOLERANCE``) in the working tree (A) and in a git revision (B, default
+and solves each with the MPC's reference settings (the de-orbit law's 20 nodes, ``--steps`` for
+another number; final time to 1e-3 s: ``descent_mpc.REFERENCE_TIME_TOLERANCE``) in the working tree (A) and in a git revision (B, default
 ``9cab8fa``), each tree exported and run in a fresh interpreter of its own (bench/guard.py's
 export), one after the other on the same states. One table: wall time median / p99 / max of a
 reference, convex solves per reference, the fuel of each tree and the largest relative fuel
@@ -49,9 +49,10 @@ AGAINST = "9cab8fa"
 SWEEPS = ("sweeps/deorbit.yaml", "sweeps/deorbit-200km.yaml")
 #: [m] the demand altitude of bench/deorbit_fuel.py's flights
 BENCH_DEMAND = 500.0
-#: the MPC's reference settings (lander_autopilot/guidance/descent_mpc.py: reference_steps,
-#: REFERENCE_TIME_TOLERANCE)
-STEPS, T_TOL = 60, 1e-3
+#: the MPC's reference settings: the de-orbit law's ``reference_steps`` (20 nodes,
+#: lander_autopilot/controllers/deorbit/params.py: what flies; ``--steps 60`` for the guidance's
+#: own default, descent_mpc.MpcSettings) and REFERENCE_TIME_TOLERANCE
+STEPS, T_TOL = 20, 1e-3
 STATE_DIR = C.ROOT / "out" / "guidance_reference"
 
 
@@ -199,7 +200,7 @@ def time_references(states: Sequence[dict[str, Any]], steps: int = STEPS, t_tol:
 
 _RUNNER = """
 import json, sys
-root, bench, states, out = sys.argv[1:]
+root, bench, states, out, steps = sys.argv[1:]
 sys.path.insert(0, root)
 import importlib
 from pathlib import Path
@@ -208,18 +209,18 @@ for name in ("lander_yaml", "lander_sim", "lander_autopilot", "lander_tools"):  
         importlib.import_module(name)
 sys.path.insert(1, bench)
 import guidance_reference as g
-rows = g.time_references(json.loads(Path(states).read_text()))
+rows = g.time_references(json.loads(Path(states).read_text()), steps=int(steps))
 import lander_autopilot
 rows = {"rows": rows, "package": lander_autopilot.__file__}
 Path(out).write_text(json.dumps(rows))
 """
 
 
-def _run_tree(root: Path, states: Path, out: Path) -> list[dict[str, Any]]:
+def _run_tree(root: Path, states: Path, out: Path, steps: int = STEPS) -> list[dict[str, Any]]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(root), *filter(None, [env.get("PYTHONPATH")])])
     proc = subprocess.run([sys.executable, "-c", _RUNNER, str(root), str(Path(__file__).resolve().parent), str(states),
-                           str(out)], env=env, capture_output=True, text=True, cwd=str(root))
+                           str(out), str(steps)], env=env, capture_output=True, text=True, cwd=str(root))
     if proc.returncode != 0:
         tail = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
         raise RuntimeError(f"references in {root} failed: {tail}")
@@ -283,7 +284,8 @@ def format_table(rows: Sequence[Row]) -> str:
     return "\n".join(out) + "\n"
 
 
-def compare(against: str = AGAINST, cases: int = 26, limit: int | None = None) -> tuple[list[Row], dict[str, Any]]:
+def compare(against: str = AGAINST, cases: int = 26, limit: int | None = None,
+            steps: int = STEPS) -> tuple[list[Row], dict[str, Any]]:
     """The table's rows, the working tree (A) against ``against`` (B), both exported and run in
     fresh interpreters on the same states (A first, then B); and the per-state figures."""
     from guard import export_revision, export_working_tree
@@ -298,8 +300,8 @@ def compare(against: str = AGAINST, cases: int = 26, limit: int | None = None) -
         path = Path(tmp) / "states.json"
         path.write_text(json.dumps(states))
         load0 = os.getloadavg()[0]
-        a = _run_tree(tree_a, path, Path(tmp) / "a.json")
-        b = _run_tree(tree_b, path, Path(tmp) / "b.json")
+        a = _run_tree(tree_a, path, Path(tmp) / "a.json", steps)
+        b = _run_tree(tree_b, path, Path(tmp) / "b.json", steps)
         load1 = os.getloadavg()[0]
     name_a, name_b = "A working tree", f"B {against} ({full[:10]})"
     return summarise(a, b, name_a, name_b), {"a": a, "b": b, "commit": full, "load": (load0, load1)}
@@ -309,9 +311,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = C.parser(__doc__.splitlines()[0])
     p.add_argument("--against", metavar="REV", default=AGAINST, help=f"git revision to time against (B; default {AGAINST})")
     p.add_argument("--cases", type=int, default=26, help="cases of each de-orbit sweep (default 26)")
+    p.add_argument("--steps", type=int, default=STEPS,
+                   help=f"nodes of the reference (default {STEPS}, the de-orbit MPC's; 60 is the guidance's default)")
     args = p.parse_args(argv)
-    rows, data = compare(args.against, args.cases, 8 if args.quick else None)
-    print(f"The fuel-optimal reference from de-orbit handover states ({STEPS} nodes, final time to {T_TOL:g} relative), "
+    rows, data = compare(args.against, args.cases, 8 if args.quick else None, args.steps)
+    print(f"The fuel-optimal reference from de-orbit handover states ({args.steps} nodes, final time to {T_TOL:g} relative), "
           f"A = working tree, B = {args.against}; load average {data['load'][0]:.1f} / {data['load'][1]:.1f} "
           f"on {os.cpu_count()} cores")
     print(format_table(rows))

@@ -15,7 +15,8 @@ touchdown listed in ``end_on``): it publishes the state of that instant, one las
 a new scene. The event's ``values`` are::
 
     [t_end, reason, n(/clock), n(/lander/state), n(/lander/odom), n(/lander/pose),
-     n(/lander/markers), n(/lander/events), n(/diagnostics), lockstep_timeouts]
+     n(/lander/markers), n(/lander/events), n(/diagnostics), lockstep_timeouts,
+     n(/lander/sensors/imu), ..., n(/lander/sensors/ground_fix)]
 
 ``t_end`` [s] the end instant, ``reason`` an index into :data:`END_REASONS`, ``n(topic)`` the
 messages the simulator published on that topic since the flight's reset (``/lander/events``
@@ -23,8 +24,10 @@ includes this event), and ``lockstep_timeouts`` the states of this flight the si
 past without the controller's answer (its ``lockstep_timeout``): in lockstep the autopilot answers
 every state once, except these, so a recording's ``/lander/throttle`` holds ``n(/lander/state) -
 lockstep_timeouts`` answers or more (an answer may come after its timeout), and a flight with any
-is not the deterministic one. Events recorded before it was added have no last value (read as 0).
-Its ``detail`` says the same in words.
+is not the deterministic one. Events recorded before it was added have no such value (read as 0).
+The counts of the sensor topics (:data:`SENSOR_TOPICS`, in that order) follow only when the
+flight's scene has sensors (a ``sensors:`` section): a flight without them carries the values above
+and nothing more. Its ``detail`` says the same in words.
 
 Every flight has a number (0 the node's first, one more at each reset or scene load), in the
 simulator's ``/diagnostics`` (key ``flight``) and in its pause answer (``..., flight N``,
@@ -48,6 +51,11 @@ COUNTED_TOPICS: tuple[str, ...] = (
     "/lander/events",
     "/diagnostics",
 )
+#: The simulator's sensor outputs (docs/sim_node.md), published only for a scene with sensors, in
+#: the order of their counts after ``lockstep_timeouts`` in ``FLIGHT_ENDED.values``.
+#: A sensor's topic is ``/lander/sensors/<key>``, its key in the scene's ``sensors:`` section.
+SENSOR_KEYS: tuple[str, ...] = ("imu", "star_tracker", "altimeter", "doppler", "ground_fix")
+SENSOR_TOPICS: tuple[str, ...] = tuple(f"/lander/sensors/{key}" for key in SENSOR_KEYS)
 #: The simulator's inputs (its subscriptions): per-thruster throttles and the wind (world frame).
 SIM_INPUT_TOPICS: tuple[str, ...] = ("/lander/throttle", "/lander/wind")
 #: Phases a touchdown may end the flight on (the ``end_on`` parameter).
@@ -57,22 +65,33 @@ END_ON_CHOICES: tuple[str, ...] = ("landed", "crashed")
 @dataclass
 class FlightEnd:
     """A decoded ``FLIGHT_ENDED``: end instant [s], reason, messages published per topic and the
-    states advanced past without the controller's answer (``lockstep_timeouts``)."""
+    states advanced past without the controller's answer (``lockstep_timeouts``). ``counts`` holds
+    the sensor topics only for a flight with sensors (all of :data:`SENSOR_TOPICS` then)."""
 
     t: float
     reason: str
     counts: dict[str, int] = field(default_factory=dict)
     lockstep_timeouts: int = 0
 
+    @property
+    def has_sensors(self) -> bool:
+        """Whether the counts hold the sensor topics (a flight of a scene with sensors)."""
+        return any(t in self.counts for t in SENSOR_TOPICS)
+
+    def topics(self) -> tuple[str, ...]:
+        """The topics the values count, in their order."""
+        return COUNTED_TOPICS + (SENSOR_TOPICS if self.has_sensors else ())
+
     def values(self) -> list[float]:
         """The event's ``values`` array (see the module docstring)."""
+        sensors = [float(self.counts.get(t, 0)) for t in SENSOR_TOPICS] if self.has_sensors else []
         return [float(self.t), float(END_REASONS.index(self.reason))] + [
             float(self.counts.get(topic, 0)) for topic in COUNTED_TOPICS
-        ] + [float(self.lockstep_timeouts)]
+        ] + [float(self.lockstep_timeouts)] + sensors
 
     def detail(self) -> str:
         """One line a person reads: when, why and what was published."""
-        counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in COUNTED_TOPICS)
+        counts = ", ".join(f"{t} {self.counts.get(t, 0)}" for t in self.topics())
         missed = f"; {self.lockstep_timeouts} lockstep timeouts" if self.lockstep_timeouts else ""
         return f"flight ended at t = {self.t!r} s ({self.reason}); published since the reset: {counts}{missed}"
 
@@ -80,15 +99,17 @@ class FlightEnd:
     def from_values(cls, values: list[float]) -> FlightEnd:
         """Decode an event's ``values``; ValueError naming what is wrong with them."""
         n = 2 + len(COUNTED_TOPICS)
-        if len(values) not in (n, n + 1):
+        if len(values) not in (n, n + 1, n + 1 + len(SENSOR_TOPICS)):
             raise ValueError(f"FLIGHT_ENDED carries {len(values)} values, expected {n + 1} "
-                             "(t_end, reason, counts, lockstep_timeouts)")
+                             f"(t_end, reason, counts, lockstep_timeouts) or {n + 1 + len(SENSOR_TOPICS)} "
+                             "(and the sensors' counts)")
         code = int(values[1])
         if not 0 <= code < len(END_REASONS) or code != values[1]:
             raise ValueError(f"FLIGHT_ENDED reason {values[1]!r} is not an index into {END_REASONS}")
         timeouts = int(values[n]) if len(values) > n else 0  # recorded before the count was added: none known
-        return cls(float(values[0]), END_REASONS[code], {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:n])},
-                   timeouts)
+        counts = {t: int(v) for t, v in zip(COUNTED_TOPICS, values[2:n])}
+        counts.update({t: int(v) for t, v in zip(SENSOR_TOPICS, values[n + 1:])})
+        return cls(float(values[0]), END_REASONS[code], counts, timeouts)
 
 
 def lockstep_warning(timeouts: int) -> str | None:

@@ -14,6 +14,9 @@ One control tick (at ``publish_rate`` of sim time, paced to the wall clock at
     [lockstep gate] -> staleness check -> Simulation.step(k) -> events -> publish
     (/clock, /lander/state, odometry, pose, TF, markers, events)
 
+A scene with sensors steps one physics step at a time and publishes each sensor's measurements
+as they fall due (``lander_sim.ros.sensor_out``).
+
 Whether a tick may run and what pause, resume, step and the end do is decided by the gate
 (``lander_sim.ros.gate``, plain Python): the node feeds it every event and does what it answers.
 
@@ -68,6 +71,7 @@ from lander_sim.ros.diagnostics import NodeHealth, diagnostics_array
 from lander_sim.ros.gate import Gate, GateSettings, Mode, Publish, TickOutcome
 from lander_sim.ros.markers import MarkerBuilder
 from lander_sim.ros.pacing import Pacer, steps_per_tick
+from lander_sim.ros.sensor_out import SensorOutputs
 from lander_sim.ros.services import SimServices
 from lander_sim.ros.sim_adapter import SimAdapter, build_simulation
 
@@ -141,8 +145,8 @@ class SimNode(Node):
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", QoSProfile(depth=1000))
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
         self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
-        self._outputs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
-                         self._pub_events, self._pub_diag)
+        self._sensors = SensorOutputs(lambda cls, topic: self.create_publisher(cls, topic, OUTPUT_QOS))
+        self._set_sensors()
 
         c = self._counted
         # A launched flight's simulator takes throttles only from the flight's nodes (lander_ros.strangers).
@@ -271,7 +275,10 @@ class SimNode(Node):
         """
         self._check_staleness()
         w0 = time.perf_counter()
-        self.sim.step(n_steps)
+        if self._sensors.on:  # one step at a time: the sensors sample the truth over each
+            self.sim.step_each(n_steps, self._sample_sensors)
+        else:
+            self.sim.step(n_steps)
         self.health.step_wall_s += time.perf_counter() - w0
         self.health.physics_steps += n_steps
         self.health.ticks += 1
@@ -290,6 +297,16 @@ class SimNode(Node):
             self.get_logger().debug(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
             return
         self._publish_outputs()
+
+    def _sample_sensors(self, sim, y_before, dt: float) -> None:
+        self._sensors.after_step(sim, y_before, dt, self._counts, self._world_frame, self._body_frame)
+
+    def _set_sensors(self) -> None:
+        """The current scene's sensors at switch-on, their publishers, and the flight's counts from zero."""
+        self._sensors.set_scene(self.sim.scene.sensors, self.sim.seed)
+        self._outputs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
+                         self._pub_events, self._pub_diag, *self._sensors.publishers.values())
+        self._counts = dict.fromkeys(COUNTED_TOPICS + self._sensors.topics(), 0)
 
     def _end_flight(self, reason: str) -> None:
         """Stop at the end instant (its state is out): a last /diagnostics, then FLIGHT_ENDED with the
@@ -344,6 +361,8 @@ class SimNode(Node):
             self._pub_clock.publish(self._clock_msg)
             counts["/clock"] += 1
         self._seq += 1
+        if self._seq == 1:  # the flight's first instant, t = 0: the sensors' first samples
+            self._sensors.at_start(self.sim.sim, counts, self._world_frame, self._body_frame)
         convert.fill_state(self._state_msg, self._seq, snap)
         now = time.monotonic()
         self.health.state_published(self._seq, now)
@@ -483,6 +502,7 @@ class SimNode(Node):
         self._publish_tf = bool(self._param("publish_tf"))
         self._marker_period = 1.0 / float(self._param("marker_rate"))
         self._world_frame = str(self._param("world_frame"))
+        self._body_frame = str(self._param("body_frame"))
 
     def _gate_settings(self) -> GateSettings:
         """The parameters the gate reads (lockstep, pause_at, the end)."""
@@ -580,7 +600,7 @@ class SimNode(Node):
         self._seq = 0
         self.flight += 1
         pending = self.gate.reset()  # running stays running; paused, held or ended: paused
-        self._counts = dict.fromkeys(COUNTED_TOPICS, 0)  # a new flight: its counts start here
+        self._set_sensors()  # a new flight: its sensors at switch-on, its counts start here
         self._timeouts_at_reset = self.health.lockstep_timeouts
         self.check_subscribers(time.monotonic())  # state 1 goes to every output someone listens to
         self.health.forget_published()

@@ -39,7 +39,8 @@ from pathlib import Path
 from typing import Any
 
 #: What ``lander fly`` records by default: everything the sim and the autopilot publish, plus
-#: the inputs (wind, demand altitude, throttle) and the clock.
+#: the inputs (wind, demand altitude, throttle) and the clock; the sensors' topics exist only for a
+#: scene with sensors.
 DEFAULT_TOPICS: tuple[str, ...] = (
     "/clock",
     "/lander/state",
@@ -52,6 +53,11 @@ DEFAULT_TOPICS: tuple[str, ...] = (
     "/lander/markers",
     "/autopilot/status",
     "/diagnostics",
+    "/lander/sensors/imu",
+    "/lander/sensors/star_tracker",
+    "/lander/sensors/altimeter",
+    "/lander/sensors/doppler",
+    "/lander/sensors/ground_fix",
 )
 #: Subscription (reader history) depth: the messages of one topic waiting for the recorder's callback,
 #: and those received after a hole while the reader waits for the writer's repair (up to the writer's

@@ -119,7 +119,15 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             on_started: Callable[[], None] | None) -> int:
     from std_srvs.srv import Trigger
 
-    from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, parse_matched, paused_flight, shortfalls, surplus
+    from lander_ros.flight_span import (
+        COUNTED_TOPICS,
+        SENSOR_TOPICS,
+        FlightEnd,
+        parse_matched,
+        paused_flight,
+        shortfalls,
+        surplus,
+    )
     from lander_tools.live.link import AUTOPILOT_NODE, SIM_NODE, FlightLink, NoFlight
     from lander_tools.recorder import Recorder
 
@@ -149,7 +157,8 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
                     ends.append(FlightEnd.from_values(list(msg.values)))
 
             link.subscribe("/lander/events", "lander_interfaces/msg/FlightEvent", on_event, depth=1000)
-            sim_topics = [t for t in COUNTED_TOPICS if rec.wanted(t)]
+            # the sensors' topics the sim publishes (a scene with sensors) are in its answer
+            sim_topics = [t for t in (*COUNTED_TOPICS, *(t for t in SENSOR_TOPICS if t in before)) if rec.wanted(t)]
             need = {t: before.get(t, 0) + 1 for t in sim_topics}
             need["/lander/events"] = before.get("/lander/events", 0) + 1 + ("/lander/events" in sim_topics)
             _wait_matched(link, rec, need, sim_topics, sim_matched, stop)
@@ -195,7 +204,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             flight_end = ends[0] if ends else None
             if flight_end is not None:
                 _say(flight_end.detail())
-                _wait_delivered(rec, {t: flight_end.counts[t] for t in sim_topics})
+                _wait_delivered(rec, {t: flight_end.counts.get(t, 0) for t in sim_topics})
         except BaseException:
             counts = rec.close()
             if not any(counts.values()):  # held all along: an empty bag would only mislead
@@ -208,7 +217,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
         if flight_end is None:
             _say("bag not checked: the flight did not reach its end while recording")
             return EXIT_OK
-        reference = {t: (flight_end.counts[t], t not in shared) for t in sim_topics}
+        reference = {t: (flight_end.counts.get(t, 0), t not in shared) for t in sim_topics}
         short, extra = shortfalls(reference, counts), surplus(reference, counts)
         if short:
             _say("INCOMPLETE: " + ", ".join(short) + " published")

@@ -102,6 +102,17 @@ def module_ros_domain() -> Iterator[int]:
             raise RuntimeError(f"processes left running in ROS_DOMAIN_ID={domain} (killed):\n  " + "\n  ".join(leaked))
 
 
+@pytest.fixture(autouse=True)
+def no_figure_outlives_its_test() -> Iterator[None]:
+    """Every pyplot figure a test made is closed after it: pyplot keeps figures until closed, and a
+    worker that runs many plotting tests in turn otherwise passes matplotlib's 20-figure warning
+    (an error under this suite's filterwarnings) in whichever test comes next."""
+    yield
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")
+
+
 @pytest.fixture
 def ros_context() -> Iterator[Any]:
     """A private rclpy Context (not the global one): tests cannot leak nodes into each other."""

@@ -50,9 +50,11 @@ edge). All on a coarse programme of ``SEARCH_STEPS`` nodes (a pass there costs a
 60), then (4) the golden section again on the caller's ``steps``, from ``FINE_BRACKET`` below the
 coarse minimum up to it: more nodes place the burn's switch more finely, so the edge and the
 minimum come earlier, never later (measured on 56 de-orbit handovers: 0 to 9.3e-4 of the final
-time earlier; 9.4e-4 on a drag-free fall of 26 s). With drag that is ~34 convex solves, four fifths
-of them on the coarse programme; (5) where the drag settles at none of the trials, a plain search
-on the caller's programme is the fall-back.
+time earlier; 9.4e-4 on a drag-free fall of 26 s). Where the caller's tolerance allows
+(``MIDDLE_SHIFT``), that golden section runs on ``MIDDLE_STEPS`` nodes instead, and (5) the
+caller's programme is solved once at its minimum, its drag started from there: the MPC's reference
+(60 nodes, 1e-3) then takes ~35 convex solves, 26 on 20 nodes, 8 on 30 and one on 60; (6) where the
+drag settles at none of the trials, a plain search on the caller's programme is the fall-back.
 
 Every pass is solved without the solver's iterative refinement (:meth:`.descent_conic.ConicProgram._settings`,
 half the time of a pass): the solutions handed out carry the static regularisation's error, measured
@@ -68,7 +70,11 @@ which OSQP (a QP solver) cannot take. Measured side by side on the de-orbit hand
 refinement were each about half of a 60-node pass; QOCO and ECOS (smaller interior-point codes)
 solved the same matrices no faster than Clarabel on this 2-core machine (a few runs each, the
 machine shared). What is left is Clarabel's own iterations (~15 a pass, ~0.12 ms each on 20 nodes,
-~0.33 ms on 60).
+~0.33 ms on 60). A solver generated for the fixed shape (QOCOGEN 0.1.9, measured on 95 of these
+passes of each size against the kept Clarabel solver) is 1.2-1.4 x faster where it solves, but ends
+12-29 % of the feasible passes in a numerical error, detects no infeasibility (which the edge's
+bisection needs), and takes minutes to generate and compile per shape: not worth a fall-back solver
+and a C build in the set-up.
 :class:`CvxpyProgram` keeps the cvxpy formulation as an independent cross-check (``backend``).
 """
 from __future__ import annotations
@@ -123,6 +129,14 @@ SEARCH_STEPS = 20
 #: [-] how far below the coarse minimum the caller's programme searches, of the final time: its
 #: minimum comes 0 to 9.4e-4 earlier (module docstring, (4)), with half as much again in hand
 FINE_BRACKET = 1.5e-3
+#: nodes of the programme the final-time search ends on, then one pass on the caller's ``steps``
+#: at its minimum, where the caller's tolerance allows (MIDDLE_SHIFT): a pass there costs half of one
+#: on 60 nodes
+MIDDLE_STEPS = 30
+#: [-] how far the 60-node minimum lies from the 30-node one, of the final time: measured 2.2e-4 at
+#: most over 56 de-orbit handovers (the 60-node fuel at the 30-node minimum within 7e-5 of its own
+#: optimum's); the search ends on the middle programme only where ``t_tol * EDGE_SHARE`` is no finer
+MIDDLE_SHIFT = 2.5e-4
 #: [-] the golden sections end at this share of the final time's tolerance: beside the feasibility
 #: edge the fuel is steep (falling by ~10 kg/s into its minimum, rising by ~0.8 kg/s past it
 #: under the chute), so an error in ``t_f`` there costs fuel to first order, not second
@@ -490,9 +504,13 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     """
     lo, hi = map(float, t_bounds if t_bounds is not None else _bracket(problem))
     fine_program = FixedTimeProgram(problem, steps, backend, refine=False)
-    coarse_program = (fine_program if steps <= SEARCH_STEPS
+    middle_program = (fine_program if steps <= MIDDLE_STEPS or MIDDLE_SHIFT > t_tol * EDGE_SHARE
+                      else FixedTimeProgram(problem, MIDDLE_STEPS, backend, refine=False))
+    coarse_program = (middle_program if middle_program.N <= SEARCH_STEPS
                       else FixedTimeProgram(problem, SEARCH_STEPS, backend, refine=False))
-    coarse, fine = _Search(coarse_program), _Search(fine_program)
+    # one search (one cache) a programme: where the caller's is the middle or coarse one, so is its search
+    searches = {id(p): _Search(p) for p in (fine_program, middle_program, coarse_program)}
+    coarse, middle, fine = (searches[id(p)] for p in (coarse_program, middle_program, fine_program))
 
     def tol(t: float) -> float:
         return t_tol * max(1.0, t)
@@ -509,17 +527,22 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
     t_edge = coarse.edge(grid[k - 1], grid[k], tol(grid[k])) if k > 0 else grid[0]
     a, b = coarse.rise(t_edge, tol(t_edge), hi)
     t_coarse = _Search.golden(lambda t: coarse.fuel(t, warm=True), a, b, tol(a) * EDGE_SHARE)
-    # (4) golden section of the converged fuel on the caller's programme from FINE_BRACKET below the
-    # coarse minimum up to it, the first trial's drag started from the coarse optimum (at its
-    # fractions of the descent), each later one from the nearest trial
-    if fine is not coarse:
+    # (4) golden section of the converged fuel on the middle programme (the caller's, unless its
+    # tolerance allows MIDDLE_STEPS) from FINE_BRACKET below the coarse minimum up to it, the first
+    # trial's drag started from the coarse optimum (at its fractions of the descent), each later one
+    # from the nearest trial; (5) then the caller's programme once at the middle one's minimum
+    if middle_program is not coarse_program:
         width = FINE_BRACKET * max(1.0, t_coarse)
-        fine.cache[t_coarse] = fine_program.solve(t_coarse, warm=coarse.cache.get(t_coarse))
-        _Search.golden(lambda t: fine.fuel(t, warm=True), max(lo, t_coarse - width), t_coarse,
+        middle.cache[t_coarse] = middle_program.solve(t_coarse, warm=coarse.cache.get(t_coarse))
+        _Search.golden(lambda t: middle.fuel(t, warm=True), max(lo, t_coarse - width), t_coarse,
                        tol(t_coarse) * EDGE_SHARE)
+    if fine is not middle:
+        best = middle.best()
+        if best is not None:
+            fine.cache[best.final_time] = fine_program.solve(best.final_time, warm=best)
     sol = fine.best()
     if sol is None:
-        # (5) no settled optimum there: golden section of the converged fuel on the grid's
+        # (6) no settled optimum there: golden section of the converged fuel on the grid's
         # bracket of its first rise (the slow, plain search)
         fuels = [fine.fuel(t) for t in grid]
         j = int(np.argmin(fuels))
@@ -528,7 +551,7 @@ def solve(problem: DescentProblem, steps: int = 60, t_bounds: tuple[float, float
         _Search.golden(fine.fuel, grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], tol(grid[j]))
         sol = fine.best()
     assert sol is not None
-    count = coarse_program.solves + (0 if fine is coarse else fine_program.solves)
+    count = sum(p.solves for p in {id(p): p for p in (coarse_program, middle_program, fine_program)}.values())
     return DescentSolution(**{**sol.__dict__, "solve_count": count})
 
 

@@ -92,7 +92,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
         "command_timeout", 0.5, "Staleness limit [s, sim time] of a held throttle command; 0 disables.", non_negative
     ),
     ParamSpec("gimbal_threshold", 0.0, "|sin theta| below which gimbal lock is flagged; 0: the scene's.", _gimbal, True),
-    ParamSpec("seed", SCENE_SEED, "Seed of the scene's stochastic models (wind gusts); -1 keeps the scene's wind.gust.seed.", _seed),
+    ParamSpec("seed", SCENE_SEED, "Seed of the scene's stochastic models (wind gusts, sensors); -1 keeps the scene's own seeds.", _seed),
     ParamSpec("stabiliser", "scene", "Attitude stabiliser: scene (the scene's setting), on or off.", _stabiliser),
     ParamSpec(
         "pause_at", -1.0, "Pause at the first control instant at or after this sim time [s] (once); < 0: never.",

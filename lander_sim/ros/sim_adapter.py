@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,6 +97,15 @@ class SimAdapter:
 
     def step(self, n: int) -> None:
         self.sim.step(n)
+
+    def step_each(self, n: int, after: Callable[[Simulation, np.ndarray, float], None]) -> None:
+        """Advance ``n`` steps one at a time, calling ``after(sim, y_before, dt)`` after each (the
+        state before the step and its length [s]: what the sensors sample)."""
+        sim = self.sim
+        for _ in range(n):
+            y_before, t_before = sim.y.copy(), sim.t
+            sim.step(1)
+            after(sim, y_before, sim.t - t_before)
 
     def set_throttles(self, throttles: Sequence[float]) -> None:
         """Validated by the core (``InputError`` on a bad command, state untouched)."""

@@ -12,7 +12,7 @@ from typing import Any, TextIO
 from lander_ros.flight_span import COUNTED_TOPICS, SIM_INPUT_TOPICS
 from lander_tools.fly.plan import FlightPlan, LaunchError
 from lander_tools.fly.processes import NodeProcess
-from lander_tools.fly.supervisor import Supervisor
+from lander_tools.fly.supervisor import Supervisor, sensor_topics
 from lander_tools.live.bridge import SUBSCRIBED_TOPICS as LIVE_TOPICS
 
 
@@ -87,6 +87,12 @@ def strangers_in_graph(f: LaunchedFlight) -> str | None:
     return ", ".join(over) or None
 
 
+def sim_outputs(f: LaunchedFlight) -> tuple[str, ...]:
+    """The topics the flight's simulator publishes and counts: the sensors' too when its scene has
+    any (lander_ros.flight_span.SENSOR_TOPICS)."""
+    return COUNTED_TOPICS + sensor_topics(f.plan.scene)
+
+
 def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
     """Per sim topic, the subscriptions its writer must have matched before the flight starts:
     this launcher's, the autopilot's and the recorder's (``sub:TOPIC``: publishers the sim's own
@@ -100,7 +106,7 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
         need["/lander/state"] += 1
         need["sub:/lander/throttle"] += 1
     if sup.recorder is not None:
-        for t in COUNTED_TOPICS:
+        for t in sim_outputs(f):
             if sup.recorder.wanted(t):
                 need[t] = need.get(t, 0) + 1
     if f.plan.live is not None:
@@ -112,7 +118,7 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
 def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
     """Per topic this process subscribes to (recorder, launcher), the publishers it must have
     matched: the sim's outputs, the autopilot's and this launcher's own."""
-    pubs = {t: 1 for t in COUNTED_TOPICS}
+    pubs = {t: 1 for t in sim_outputs(f)}
     pubs.update({t: 1 for t in (*SIM_INPUT_TOPICS, "/lander/demand_altitude")})
     if f.controller is not None:
         pubs["/lander/throttle"] += 1

@@ -18,9 +18,10 @@ from std_srvs.srv import SetBool, Trigger
 
 from lander_interfaces.msg import AutopilotStatus, FlightEvent, LanderState, ThrottleCommand
 from lander_interfaces.srv import Reset, SwitchController
-from lander_ros.flight_span import FlightEnd, sim_paused
+from lander_ros.flight_span import SENSOR_KEYS, SENSOR_TOPICS, FlightEnd, sim_paused
 from lander_ros.stamps import stamp_to_seconds
 from lander_ros.strangers import STRANGER_KIND
+from lander_sim.scenes import load_scene
 from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
 from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
 
@@ -162,7 +163,9 @@ class Supervisor:
         meta = {"scene": plan.scene, "controller": self.controller or "none", "speed": str(plan.speed)}
         meta.update({k: str(v) for k, v in plan.sim_params.items()})
         meta.update(plan.meta)
-        return Recorder(self.node, RecorderConfig(plan.record, plan.storage, plan.topics or DEFAULT_TOPICS, meta=meta))
+        # the sensors' topics only when the scene has sensors: the recorder waits for nothing else
+        topics = plan.topics or tuple(t for t in DEFAULT_TOPICS if t not in SENSOR_TOPICS or sensor_topics(plan.scene))
+        return Recorder(self.node, RecorderConfig(plan.record, plan.storage, topics, meta=meta))
 
     @property
     def end(self) -> str | None:
@@ -315,3 +318,11 @@ def call(executor: Any, client: Any, request: Any, timeout: float, what: str) ->
             raise LaunchError(f"{what}: no answer from {client.srv_name} within {timeout} s")
         executor.spin_once(timeout_sec=0.05)
     return fut.result()
+
+
+def sensor_topics(scene: str) -> tuple[str, ...]:
+    """The sensor topics the simulator of ``scene`` (a name or a YAML path) publishes: one per
+    sensor the scene switches on (lander_ros.flight_span.SENSOR_TOPICS), none for a scene without."""
+    sensors = load_scene(scene).sensors
+    on = () if sensors is None else tuple(sensors.sections)
+    return tuple(t for k, t in zip(SENSOR_KEYS, SENSOR_TOPICS) if k in on)

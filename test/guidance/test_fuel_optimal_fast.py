@@ -11,7 +11,9 @@ import pytest
 
 from lander_autopilot.guidance.descent_conic import ConicProgram, Linearisation
 from lander_autopilot.guidance.fuel_optimal import (
+    EDGE_SHARE,
     FUEL_AGREEMENT,
+    MIDDLE_SHIFT,
     CvxpyProgram,
     DescentLimits,
     DescentProblem,
@@ -144,3 +146,27 @@ def test_the_search_on_more_nodes_never_ends_later_than_on_its_coarse_programme(
     assert fine.final_time <= coarse.final_time * (1 + 1e-9)
     at_coarse = FixedTimeProgram(problem, 60).solve(coarse.final_time)
     assert at_coarse is not None and fine.fuel <= at_coarse.fuel * (1 + FUEL_AGREEMENT)
+
+
+def test_a_search_that_ends_on_the_middle_programme_keeps_its_tolerance():
+    """With the MPC's tolerance (1e-3) the golden section runs on MIDDLE_STEPS nodes and the caller's
+    programme is solved once at its minimum: the final time is the 60-node search's (to 1e-5) within
+    the middle programme's shift plus the section's own end, and the fuel within the passes'
+    agreement."""
+    problem = _problems()["chute handover"]
+    fast = solve(problem, steps=60, t_tol=1e-3)
+    exact = solve(problem, steps=60, t_tol=1e-5)
+    assert len(fast.t) == 61
+    assert abs(fast.final_time - exact.final_time) <= (MIDDLE_SHIFT + 1e-3 * EDGE_SHARE + 1e-5) * exact.final_time
+    assert fast.fuel == pytest.approx(exact.fuel, rel=FUEL_AGREEMENT)
+    assert fast.solve_count < exact.solve_count
+
+
+def test_a_search_on_the_coarse_programme_itself_ends_there():
+    """Where the caller's programme is the coarse one (the de-orbit MPC's 20 nodes), the search is
+    the coarse stage of the 60-node search and nothing more: no more solves than that search, and
+    the same final time as its coarse stage would give it."""
+    problem = _problems()["chute handover"]
+    own, fine = solve(problem, steps=20, t_tol=1e-3), solve(problem, steps=60, t_tol=1e-3)
+    assert own.solve_count < fine.solve_count
+    assert len(own.t) == 21 and fine.final_time <= own.final_time * (1 + 1e-9)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from lander_ros.flight_span import COUNTED_TOPICS, FlightEnd, lockstep_warning
+from lander_ros.flight_span import COUNTED_TOPICS, SENSOR_TOPICS, FlightEnd, lockstep_warning
 
 
 def test_the_values_carry_the_counts_and_the_lockstep_timeouts_and_decode_back() -> None:
@@ -23,6 +23,18 @@ def test_an_event_recorded_before_the_timeout_count_decodes_with_none() -> None:
     counts = {t: 5 for t in COUNTED_TOPICS}
     old = [2.0, 0.0] + [5.0] * len(COUNTED_TOPICS)  # the older layout: no lockstep-timeout count
     assert FlightEnd.from_values(old) == FlightEnd(2.0, "time-limit", counts, 0)
+
+
+def test_a_flight_with_sensors_carries_their_counts_after_the_timeouts_and_one_without_does_not() -> None:
+    counts = {t: 10 * i + 1 for i, t in enumerate(COUNTED_TOPICS)}
+    plain = FlightEnd(3.0, "time-limit", counts, 2)
+    assert len(plain.values()) == 2 + len(COUNTED_TOPICS) + 1 and not plain.has_sensors
+    with_sensors = FlightEnd(3.0, "time-limit", counts | {t: 100 + i for i, t in enumerate(SENSOR_TOPICS)}, 2)
+    values = with_sensors.values()
+    assert values[: len(plain.values())] == plain.values()  # the layout without sensors, then theirs
+    assert values[len(plain.values()):] == [100.0 + i for i in range(len(SENSOR_TOPICS))]
+    assert FlightEnd.from_values(values) == with_sensors
+    assert "/lander/sensors/imu 100" in with_sensors.detail() and "sensors" not in plain.detail()
 
 
 @pytest.mark.parametrize("values, words", [

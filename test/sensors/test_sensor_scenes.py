@@ -2,7 +2,10 @@
 for is on with its parameters checked against each sensor's table, nothing else is, errors name the key."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
+import yaml
 
 from lander_sim.scenes import list_scenes, load_scene
 from lander_sim.scenes.loader import SceneError, parse_scene
@@ -17,8 +20,15 @@ def _scene(sensors):
 
 
 def test_no_section_no_sensors_in_every_packaged_scene() -> None:
+    """A packaged scene without a ``sensors:`` section has none; one with it has exactly those it lists."""
     for info in list_scenes():
-        assert load_scene(info.path).sensors is None, info.name
+        section = yaml.safe_load(Path(info.path).read_text()).get("sensors")
+        sensors = load_scene(info.path).sensors
+        if section is None:
+            assert sensors is None, info.name
+        else:
+            assert sensors is not None and set(sensors.sections) == set(section) - {"seed"}, info.name
+    assert set(load_scene("landing-sensors").sensors.sections) == {"imu", "star_tracker", "altimeter", "doppler"}
 
 
 def test_only_the_sensors_asked_for_are_on_with_defaults_and_overrides() -> None:

@@ -29,6 +29,8 @@ from lander_tools.bagio import message_class
 DISCOVERY_TIMEOUT = 3.0
 #: Wall seconds to wait for a service's answer.
 CALL_TIMEOUT = 10.0
+#: [s] a query unanswered this long is sent again (:meth:`FlightLink.call`, ``ask_again``)
+ASK_AGAIN = 1.0
 #: Wall seconds to watch for the simulator's rejection of a published input (it answers within a
 #: callback pass, ~1 ms when idle; the window covers a loaded 2-core machine).
 REJECT_WINDOW = 0.5
@@ -168,19 +170,30 @@ class FlightLink:
                 self._clients[name] = self.node.create_client(srv_type, name)
             return self._clients[name]
 
-    def call(self, srv_type: Any, name: str, request: Any, timeout: float = CALL_TIMEOUT) -> Any:
+    def call(self, srv_type: Any, name: str, request: Any, timeout: float = CALL_TIMEOUT,
+             ask_again: float | None = None) -> Any:
         """Call service ``name`` and return its response; :class:`NoFlight` if it is not there,
-        ``TimeoutError`` if it does not answer in ``timeout`` s."""
+        ``TimeoutError`` if it does not answer in ``timeout`` s.
+
+        ``ask_again`` [s], for a request that changes nothing (a query): sent again at that interval
+        until answered. A service is "available" once this client's requests reach it; the server's
+        replies reach this client only once the server has matched its reply reader too, and a reply
+        sent before that is lost (seen with a fresh client under load: no answer in 10 s). A second
+        request finds the reply path matched. Never for a request that acts (step, switch, set)."""
         client = self._client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
             raise NoFlight(f"service {name} not available within {timeout:g} s (is a flight running?)")
-        done = threading.Event()
-        fut = client.call_async(request)
-        fut.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout):
+        deadline = time.monotonic() + timeout
+        while True:
+            done = threading.Event()
+            fut = client.call_async(request)
+            fut.add_done_callback(lambda _f, d=done: d.set())
+            left = deadline - time.monotonic()
+            if done.wait(max(left, 0.0) if ask_again is None else min(ask_again, max(left, 0.0))):
+                return fut.result()
             client.remove_pending_request(fut)
-            raise TimeoutError(f"service {name} did not answer within {timeout:g} s")
-        return fut.result()
+            if ask_again is None or time.monotonic() >= deadline:
+                raise TimeoutError(f"service {name} did not answer within {timeout:g} s")
 
     def sim_service(self, name: str, **fields: Any) -> Outcome:
         """``/lander/<name>`` (pause, resume, step, reset, deploy_parachute, ...): its response."""
@@ -236,7 +249,8 @@ class FlightLink:
 
         from lander_tools.live.params import python_value
 
-        resp = self.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=list(names)))
+        resp = self.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=list(names)),
+                         ask_again=ASK_AGAIN)
         return {n: python_value(v) for n, v in zip(names, resp.values)}
 
     def set_demand(self, altitude_m: float) -> Outcome:

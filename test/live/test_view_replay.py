@@ -7,6 +7,7 @@ process, in headless Chromium, on a bag the real launcher recorded (`lander fly 
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -15,6 +16,7 @@ import re
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -81,6 +83,28 @@ def start_view(bag: Path) -> tuple[rosutil.ChildProcess, str]:
     return child, found.group(1)
 
 
+@contextlib.contextmanager
+def replay_page(bag: Path) -> Iterator[tuple[Any, list[str]]]:
+    """``lander view bag`` in headless Chromium: the page once its replay holds the bag's records,
+    and the list its console errors go to; browser and view closed afterwards."""
+    from playwright.sync_api import sync_playwright
+
+    view, url = start_view(bag)
+    try:
+        with sync_playwright() as pw:
+            browser = launch_chromium(pw)
+            try:
+                page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
+                errors = console_errors(page)
+                page.goto(url)
+                page.wait_for_function("window.replay && window.replay.records.length > 0", timeout=30_000)
+                yield page, errors
+            finally:
+                browser.close()
+    finally:
+        view.close()
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     """A 5 s hover recorded by the real launcher (lockstep, as fast as it goes)."""
@@ -96,43 +120,29 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
 
 
 def test_view_replays_a_recorded_flight_to_its_end(recorded: Path, tmp_path: Path) -> None:
-    from playwright.sync_api import sync_playwright
-
     states = read_bag(recorded, ["/lander/state"]).topics["/lander/state"].messages
     t_end = stamp_to_seconds(states[-1].header.stamp)
-    view, url = start_view(recorded)
-    try:
-        with sync_playwright() as pw:
-            browser = launch_chromium(pw)
-            try:
-                page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
-                errors = console_errors(page)
-                page.goto(url)
-                page.wait_for_function("window.replay && window.replay.records.length > 0", timeout=30_000)
-                assert page.evaluate("window.replay.records.length") == len(states)
-                page.select_option("#replay-speed", "20")
-                page.click("#play")
-                page.wait_for_function("window.replay.index === window.replay.records.length - 1 && !window.replay.playing",
-                                       timeout=30_000)
-                shown, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
-                assert shown["t"] == pytest.approx(t_end, abs=1e-9) and drawn["t"] == shown["t"]
-                assert drawn["trail"] == len(states)  # every state of the flight drawn in the trail
-                np.testing.assert_allclose(drawn["position"], shown["position_S"], atol=1e-3)
-                np.testing.assert_allclose(drawn["z_axis"], shown["up_S"], atol=1e-6)
-                page.wait_for_timeout(300)  # let the graphs (10 Hz) draw the end for the picture
-                shot = tmp_path / "view-replay.png"
-                page.screenshot(path=str(shot))
-                if os.environ.get("LANDER_DOCS_SCREENSHOT"):
-                    shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
-                # The slider goes back: the view shows the flight up to that state only.
-                page.eval_on_selector("#replay-slider", "(s) => { s.value = '10'; s.dispatchEvent(new Event('input')); }")
-                back = page.evaluate("[window.liveStats.last.t, window.view3d.state().trail]")
-                assert back == [pytest.approx(stamp_to_seconds(states[10].header.stamp), abs=1e-9), 11]
-                assert errors == []
-            finally:
-                browser.close()
-    finally:
-        view.close()
+    with replay_page(recorded) as (page, errors):
+        assert page.evaluate("window.replay.records.length") == len(states)
+        page.select_option("#replay-speed", "20")
+        page.click("#play")
+        page.wait_for_function("window.replay.index === window.replay.records.length - 1 && !window.replay.playing",
+                               timeout=30_000)
+        shown, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
+        assert shown["t"] == pytest.approx(t_end, abs=1e-9) and drawn["t"] == shown["t"]
+        assert drawn["trail"] == len(states)  # every state of the flight drawn in the trail
+        np.testing.assert_allclose(drawn["position"], shown["position_S"], atol=1e-3)
+        np.testing.assert_allclose(drawn["z_axis"], shown["up_S"], atol=1e-6)
+        page.wait_for_timeout(300)  # let the graphs (10 Hz) draw the end for the picture
+        shot = tmp_path / "view-replay.png"
+        page.screenshot(path=str(shot))
+        if os.environ.get("LANDER_DOCS_SCREENSHOT"):
+            shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
+        # The slider goes back: the view shows the flight up to that state only.
+        page.eval_on_selector("#replay-slider", "(s) => { s.value = '10'; s.dispatchEvent(new Event('input')); }")
+        back = page.evaluate("[window.liveStats.last.t, window.view3d.state().trail]")
+        assert back == [pytest.approx(stamp_to_seconds(states[10].header.stamp), abs=1e-9), 11]
+        assert errors == []
 
 
 def test_the_drawn_body_turns_with_the_recorded_attitude(tmp_path: Path) -> None:
@@ -140,66 +150,39 @@ def test_the_drawn_body_turns_with_the_recorded_attitude(tmp_path: Path) -> None
     picture of the view at a = 0 and at a = pi / 2 differs (same place, camera and trail: only the
     attitude changed)."""
     from PIL import Image
-    from playwright.sync_api import sync_playwright
 
     tumbling_bag(tmp_path / "tumble")
-    view, url = start_view(tmp_path / "tumble")
-    try:
-        with sync_playwright() as pw:
-            browser = launch_chromium(pw)
-            try:
-                page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
-                errors = console_errors(page)
-                page.goto(url)
-                page.wait_for_function("window.replay && window.replay.records.length > 0", timeout=30_000)
-                pictures = {}
-                for i in range(N_SYNTH):
-                    page.eval_on_selector("#replay-slider", f"(s) => {{ s.value = '{i}'; s.dispatchEvent(new Event('input')); }}")
-                    rec, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
-                    np.testing.assert_allclose(drawn["z_axis"], rec["up_S"], atol=1e-6)
-                    if i in (0, N_SYNTH // 2):
-                        page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
-                        png = page.locator("#view3d").screenshot()
-                        pictures[i] = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
-                upright, turned = pictures[N_SYNTH // 2], pictures[0]
-                h, w = upright.shape
-                centre = (slice(h // 4, 3 * h // 4), slice(w // 4, 3 * w // 4))  # where the body is drawn
-                changed = np.mean(np.abs(upright[centre] - turned[centre]) > 16)
-                assert changed > 0.002, changed  # the body's pixels (~1 % of the centre) moved
-                assert errors == []
-            finally:
-                browser.close()
-    finally:
-        view.close()
+    with replay_page(tmp_path / "tumble") as (page, errors):
+        pictures = {}
+        for i in range(N_SYNTH):
+            page.eval_on_selector("#replay-slider", f"(s) => {{ s.value = '{i}'; s.dispatchEvent(new Event('input')); }}")
+            rec, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
+            np.testing.assert_allclose(drawn["z_axis"], rec["up_S"], atol=1e-6)
+            if i in (0, N_SYNTH // 2):
+                page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
+                png = page.locator("#view3d").screenshot()
+                pictures[i] = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
+        upright, turned = pictures[N_SYNTH // 2], pictures[0]
+        h, w = upright.shape
+        centre = (slice(h // 4, 3 * h // 4), slice(w // 4, 3 * w // 4))  # where the body is drawn
+        changed = np.mean(np.abs(upright[centre] - turned[centre]) > 16)
+        assert changed > 0.002, changed  # the body's pixels (~1 % of the centre) moved
+        assert errors == []
 
 
 def test_far_from_the_ground_the_view_shows_the_planet_and_the_orbit_at_scale(tmp_path: Path) -> None:
     """A descent from 150 km to 30 km (above the 20 km of PLANET_VIEW_ALTITUDE all along): the view
     draws the planet frame in km, the lander at its world position / 1000, every state in the orbit
     line, the body in its world attitude (z axis = q_WB applied to z)."""
-    from playwright.sync_api import sync_playwright
-
     t = np.linspace(0.0, 600.0, 61)
     write_flight_bag(tmp_path / "high", t, 150e3 - 200.0 * t, np.full_like(t, -200.0), meta={"scene": "hover"})
-    view, url = start_view(tmp_path / "high")
-    try:
-        with sync_playwright() as pw:
-            browser = launch_chromium(pw)
-            try:
-                page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
-                errors = console_errors(page)
-                page.goto(url)
-                page.wait_for_function("window.replay && window.replay.records.length > 0", timeout=30_000)
-                page.eval_on_selector("#replay-slider", "(s) => { s.value = s.max; s.dispatchEvent(new Event('input')); }")
-                rec, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
-                assert drawn["view"] == "planet" and rec["altitude"] == pytest.approx(30e3)
-                np.testing.assert_allclose(drawn["position"], np.asarray(rec["position_W"]) * 1e-3, rtol=1e-6)
-                x, y, z, w = rec["q_WB"]
-                z_W = body_to_world(np.array([w, x, y, z]), np.array([0.0, 0.0, 1.0]))
-                np.testing.assert_allclose(drawn["z_axis"], z_W, atol=1e-6)
-                assert page.evaluate("window.view3d.orbit.n") == len(t)
-                assert errors == []
-            finally:
-                browser.close()
-    finally:
-        view.close()
+    with replay_page(tmp_path / "high") as (page, errors):
+        page.eval_on_selector("#replay-slider", "(s) => { s.value = s.max; s.dispatchEvent(new Event('input')); }")
+        rec, drawn = page.evaluate("[window.liveStats.last, window.view3d.state()]")
+        assert drawn["view"] == "planet" and rec["altitude"] == pytest.approx(30e3)
+        np.testing.assert_allclose(drawn["position"], np.asarray(rec["position_W"]) * 1e-3, rtol=1e-6)
+        x, y, z, w = rec["q_WB"]
+        z_W = body_to_world(np.array([w, x, y, z]), np.array([0.0, 0.0, 1.0]))
+        np.testing.assert_allclose(drawn["z_axis"], z_W, atol=1e-6)
+        assert page.evaluate("window.view3d.orbit.n") == len(t)
+        assert errors == []

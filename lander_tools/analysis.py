@@ -371,7 +371,9 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
     # Step response: the last step to a hover, over its segment (module docstring).
     settling = overshoot = sse = hover_max = step = hd = None
     t_down = touchdown_time if touchdown_time is not None else math.inf
-    ks = _hover_step(flight.demand, flight.demand_t, t_down)
+    facts = flight.facts
+    # Free space or a fixed pivot: no altitude to hold (metrics_fit), whatever demand the status names.
+    ks = _hover_step(flight.demand, flight.demand_t, t_down) if facts is None or facts.surface else None
     if ks is not None:
         hd = float(flight.demand[ks])
         t1 = min(float(flight.demand_t[ks + 1]) if ks + 1 < len(flight.demand) else math.inf, t_down)
@@ -386,7 +388,6 @@ def metrics(flight: Flight, band_min: float = 0.5, tail_fraction: float = 0.2) -
             settling, overshoot, sse, hover_max = _step_response(
                 t[seg], flight.altitude[seg], t0, h0, hd, band_min, tail_fraction)
 
-    facts = flight.facts
     n_thr = facts.n_thrusters if facts is not None else (flight.throttles.shape[1] if flight.throttles.ndim == 2 else 0)
     sat_time = _saturation_time(flight, n_thr)
 

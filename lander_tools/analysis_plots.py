@@ -60,7 +60,15 @@ def is_fixed_pivot(flight: Flight) -> bool:
 
 
 
-#: Plot kinds :func:`figures` draws (``ztrack`` only for a fixed pivot).
+def over_surface(flight: Flight) -> bool:
+    """Altitude and climb rate are figures of this flight: its scene has a surface to fly over
+    (:attr:`~lander_tools.metrics_fit.SceneFacts.surface`); for a bag whose scene is unknown,
+    anything but a fixed pivot."""
+    facts = flight.facts
+    return facts.surface if facts is not None else not is_fixed_pivot(flight)
+
+
+#: Plot kinds :func:`figures` draws (``altitude`` only over a surface, ``ztrack`` only for a fixed pivot).
 PLOT_KINDS = ("altitude", "attitude", "throttles", "trajectory", "ztrack")
 _TIME = "simulation time [s]"
 
@@ -114,21 +122,25 @@ def figures(flights: list[Flight]) -> dict[str, Any]:
     names = [f.name for f in flights]
     out: dict[str, Any] = {}
 
-    fig, (a1, a2) = _panels(plt, 2, 6.5)
-    for i, f in enumerate(flights):
-        c = ps.colour(i)
-        a1.plot(f.t, f.altitude, color=c, gid=f.name)
-        if len(f.demand):
-            td = np.concatenate([f.demand_t, [f.t[-1]]]) if len(f.t) else f.demand_t
-            hd = np.concatenate([f.demand, [f.demand[-1]]]) if len(f.t) else f.demand
-            a1.step(td, hd, where="post", ls="--", color=c, lw=1.0, gid=f.name)
-        a2.plot(f.t, f.climb_rate, color=c, gid=f.name)
-    a1.set_ylabel("altitude [m]")
-    a2.set_ylabel("climb rate [m/s]")
-    key = ps.style_key(["-", "--"], ["altitude", "demand altitude"])
-    handles = ps.colour_key(names) + key if len(flights) > 1 else key
-    ps.legend_outside(fig, handles, [h.get_label() for h in handles])
-    out["altitude"] = fig
+    # Altitude and climb rate only for flights over a surface (metrics_fit): a fixed pivot or a
+    # body in free space has neither.
+    over = [i for i, f in enumerate(flights) if over_surface(f)]
+    if over:
+        fig, (a1, a2) = _panels(plt, 2, 6.5)
+        for i in over:
+            f, c = flights[i], ps.colour(i)
+            a1.plot(f.t, f.altitude, color=c, gid=f.name)
+            if len(f.demand):
+                td = np.concatenate([f.demand_t, [f.t[-1]]]) if len(f.t) else f.demand_t
+                hd = np.concatenate([f.demand, [f.demand[-1]]]) if len(f.t) else f.demand
+                a1.step(td, hd, where="post", ls="--", color=c, lw=1.0, gid=f.name)
+            a2.plot(f.t, f.climb_rate, color=c, gid=f.name)
+        a1.set_ylabel("altitude [m]")
+        a2.set_ylabel("climb rate [m/s]")
+        key = ps.style_key(["-", "--"], ["altitude", "demand altitude"])
+        handles = ps.colour_key([names[i] for i in over]) + key if len(flights) > 1 else key
+        ps.legend_outside(fig, handles, [h.get_label() for h in handles])
+        out["altitude"] = fig
 
     fig, (a1, a2) = _panels(plt, 2, 6.5)
     a1.set_ylabel("ZXZ Euler angle [deg]")

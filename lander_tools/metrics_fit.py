@@ -6,6 +6,11 @@ place those rules live:
 
 * **altitude** applies to a body that flies about the planet: not to a fixed pivot (the seed-1
   rotor and pendulum scenes sit at ``r_W = 0``, the planet's centre, with no local vertical);
+* **the figures of flight over a surface** (altitude, climb rate, ground speed, tilt from the
+  local vertical, and the hover's step response) apply where the scene has a ground to fly over
+  (its ``ground`` model): in free space (scenario 8, 1000 R out, gravity only) the altitude is
+  a radius, "upright" is the attitude law's own frame, not the local vertical, and no law holds
+  an altitude;
 * **fuel** applies to a vehicle with thrusters (a rotor has none: its tank reads 0 kg, which is
   no measurement);
 * **the z-axis track** (reference 1, Figure 1) applies to a fixed pivot, the gimballed rotor's
@@ -39,6 +44,9 @@ class SceneFacts:
     fixed_pivot: bool  #: rotation only, about the pivot (scene key ``fixed_pivot``)
     attitude: str  #: ``euler`` or ``quaternion`` (the integrated attitude)
     n_thrusters: int
+    #: A ground to fly over (scene model ``ground``), and a body free to move: altitude, climb
+    #: rate, ground speed, tilt and the hover's figures apply.
+    surface: bool
     #: Models that put a torque on the body whatever the state's flags say (names, for messages).
     torque_models: tuple[str, ...]
 
@@ -66,13 +74,14 @@ def _facts_of(name: str) -> SceneFacts | None:
     if drag is not None and getattr(drag, "kind", "") == "mesh":
         torques.append("mesh drag")
     return SceneFacts(name=scene.name, fixed_pivot=not scene.translation, attitude=str(scene.attitude),
-                      n_thrusters=scene.vehicle.n_thrusters, torque_models=tuple(torques))
+                      n_thrusters=scene.vehicle.n_thrusters, torque_models=tuple(torques),
+                      surface=bool(scene.translation) and "ground" in scene.models)
 
 
 def altitude_applies(r_W: np.ndarray, facts: SceneFacts | None = None) -> bool:
-    """Altitude is a figure of this state: not at the planet's centre (a fixed pivot's ``r_W = 0``)
-    and not a fixed pivot by the scene."""
-    return not (facts is not None and facts.fixed_pivot) and float(np.dot(r_W, r_W)) > 0.0
+    """Altitude is a figure of this state: not at the planet's centre (a fixed pivot's ``r_W = 0``),
+    and, by the scene, a body that flies over a surface (:attr:`SceneFacts.surface`)."""
+    return not (facts is not None and not facts.surface) and float(np.dot(r_W, r_W)) > 0.0
 
 
 def fuel_applies(n_thrusters: int) -> bool:

@@ -46,7 +46,7 @@ def _shutdown_on_exit(action, reason: str) -> RegisterEventHandler:
 def _nodes(context):
     plan = launch_plan({name: LaunchConfiguration(name).perform(context) for name in ARGS}, _scene_controller)
     sim = Node(package="mars_lander", executable="sim_node", name="lander_sim", output="screen",
-               parameters=[*plan.sim_defaults, *plan.files, plan.sim])
+               parameters=[*plan.files, plan.sim])
     actions = [*(SetEnvironmentVariable(name, value) for name, value in plan.env.items()),
                sim, _shutdown_on_exit(sim, "sim exited")]
     if plan.autopilot is not None:

@@ -44,12 +44,10 @@ NODE_WAIT_S = 30.0
 class LaunchPlan:
     """The processes of one launched flight.
 
-    ``sim_defaults`` come before the params files (a file's value wins), ``sim`` after them (the
-    launch arguments win); ``autopilot`` is None for the sim alone; ``ender`` is the argv after
+    ``sim`` comes after the params files (the launch arguments win); ``autopilot`` is None for the sim alone; ``ender`` is the argv after
     ``lander`` of the process whose exit shuts the launch down, for the reason ``end_reason``."""
 
     sim: dict[str, Any]
-    sim_defaults: list[dict[str, Any]]
     files: list[str]
     autopilot: dict[str, Any] | None
     ender: list[str] = field(default_factory=list)
@@ -68,7 +66,6 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str],
     import os
 
     from lander_tools.fly.domain import LOCALHOST, RANGE_VAR
-    from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT
 
     environ = os.environ if environ is None else environ
     env = {} if environ.get(RANGE_VAR, "").strip() else {RANGE_VAR: LOCALHOST}
@@ -83,8 +80,6 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str],
         sim["command_timeout"] = 0.0  # the sim alone holds the last command for good
     if arg["duration"]:
         sim["end_time"] = _number(arg, "duration")  # the sim stops itself there (docs/sim_node.md)
-    # As `lander fly`: flat out in lockstep the sim waits out a slow answer; a params file's value wins.
-    defaults = [{"lockstep_timeout": FLAT_OUT_LOCKSTEP_TIMEOUT}] if sim["lockstep"] and speed == 0 else []
     files = [arg["params_file"]] if arg["params_file"] else []
     autopilot = ({"scene": arg["scene"], "controller": controller, "use_sim_time": True} if controller else None)
     wait = ["--wait", f"{NODE_WAIT_S:g}"]
@@ -96,7 +91,7 @@ def launch_plan(arg: Mapping[str, str], scene_controller: Callable[[str], str],
     else:
         ender = ["start", *(["--autopilot"] if controller else []), "--until-end", *wait]
         reason = "flight ended"
-    return LaunchPlan(sim, defaults, files, autopilot, ender, reason, env)
+    return LaunchPlan(sim, files, autopilot, ender, reason, env)
 
 
 def _number(arg: Mapping[str, str], name: str) -> float:

@@ -46,6 +46,7 @@ from lander_tools.fly.plan import (
 )
 from lander_tools.fly.processes import NodeProcess, node_commands, stop_all
 from lander_tools.fly.summary import final_state
+from lander_tools.metrics_fit import scene_facts
 from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call, stall_reason
 from lander_tools.fly.timeline import Stop, apply_now, arm, control_period, split_timeline
 from lander_tools.live.bridge import command as live_command
@@ -455,7 +456,7 @@ def _add_what_was_watched(f: LaunchedFlight, result: FlightResult) -> None:
     if sup is None:
         return
     if sup.state is not None:
-        result.final = final_state(sup.state)
+        result.final = final_state(sup.state, scene_facts({"scene": f.plan.scene}))
     result.touchdown = dict(sup.touchdown)
     result.controller, result.gains = sup.autopilot_gains
     result.touchdown_class = sup.touchdown_class

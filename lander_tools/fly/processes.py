@@ -14,11 +14,6 @@ from lander_tools import child
 from lander_tools.fly.checks import read_params_file
 from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, FlightPlan, pilot_mode
 
-#: The sim's ``lockstep_timeout`` [wall s] in a lockstep flight at speed 0 unless the user sets one:
-#: flat out there is no wall clock to keep, so the sim waits out an answer that takes seconds (a
-#: controller's design, the MPC's reference solve at the handover) and the flight stays the
-#: deterministic one; kept under STALL_TIMEOUT so a hung autopilot shows as counted timeouts.
-FLAT_OUT_LOCKSTEP_TIMEOUT = 20.0
 #: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
 STOP_GRACE = 5.0
 
@@ -119,8 +114,6 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
         sim_params["flight_nodes"] = "/autopilot /lander_fly" if controller is not None else "/lander_fly"
     if controller is not None:
         sim_params["lockstep"] = plan.lockstep is not False
-        if sim_params["lockstep"] and plan.speed == 0:
-            sim_params.setdefault("lockstep_timeout", FLAT_OUT_LOCKSTEP_TIMEOUT)
     else:
         sim_params["lockstep"] = pilot_mode(plan, controller)
         # The sim alone holds the last command (the user's or the timeline's) for good.

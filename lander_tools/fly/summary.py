@@ -9,26 +9,27 @@ import numpy as np
 
 from lander_ros.flight_span import lockstep_warning
 from lander_tools.fly.plan import FlightResult
-from lander_tools.metrics_fit import altitude_applies, fuel_applies
+from lander_tools.metrics_fit import SceneFacts, altitude_applies, fuel_applies
 from lander_tools.sweep.metrics import altitude_and_tilt
 
 
-def final_state(msg: Any) -> dict[str, float]:
+def final_state(msg: Any, facts: SceneFacts | None = None) -> dict[str, float]:
     """What a pilot reads off the last LanderState: altitude [m], climb rate [m/s], ground speed
     [m/s], fuel [kg] and the tilt [deg] of the body z axis from the local vertical (the message's
     orientation components are the core's quaternion, lander_sim.ros.convert). NaN where a figure
-    does not apply (lander_tools.metrics_fit, the rules ``lander analyse`` follows): altitude and
-    tilt on a fixed pivot (the rotor scenes, position r = 0), which has no local vertical; fuel on
-    a vehicle without thrusters."""
+    does not apply (lander_tools.metrics_fit, the rules ``lander analyse`` follows): the figures of
+    flight over a surface on a fixed pivot (the rotor scenes, position r = 0, no local vertical)
+    and, by the scene's ``facts``, in free space; fuel on a vehicle without thrusters."""
     o, p = msg.orientation, msg.position
     r = np.array([p.x, p.y, p.z])
     altitude, tilt = altitude_and_tilt(r, np.array([o.w, o.x, o.y, o.z]))
+    over_surface = altitude_applies(r, facts) and math.isfinite(altitude)
     return {
-        "altitude": float(msg.altitude) if altitude_applies(r) and math.isfinite(altitude) else math.nan,
-        "climb_rate": float(msg.climb_rate),
-        "ground_speed": float(msg.ground_speed),
+        "altitude": float(msg.altitude) if over_surface else math.nan,
+        "climb_rate": float(msg.climb_rate) if over_surface else math.nan,
+        "ground_speed": float(msg.ground_speed) if over_surface else math.nan,
         "fuel": float(msg.fuel_mass) if fuel_applies(len(msg.throttles)) else math.nan,
-        "tilt_deg": math.degrees(tilt),
+        "tilt_deg": math.degrees(tilt) if over_surface else math.nan,
     }
 
 
@@ -38,7 +39,7 @@ def _figure(value: float, fmt: str, unit: str) -> str:
 
 def summary(result: FlightResult) -> str:
     """The flight summary ``lander fly`` prints: every figure named, with its unit; "n/a" where a
-    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot); the
+    figure does not apply (no touchdown in an orbit, no altitude or tilt on a fixed pivot or in free space); the
     controller and the gains in force as the autopilot last reported them."""
     rtf = result.sim_time / result.wall_time if result.wall_time > 0 else 0.0
     lines = [

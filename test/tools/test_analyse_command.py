@@ -91,9 +91,10 @@ def test_every_output_path_is_checked_before_use(tmp_path: Path, out: str, prefi
     assert r.stdout == "" and not (tmp_path / "png").exists()  # refused before anything was read or made
 
 
-#: Seed 1's fixed-pivot scenes, flown by the real nodes for 10 s and recorded under names that do
+#: Seed 1's fixed-pivot scenes and scenario 8's free space (canted thrusters), flown by the real nodes for 10 s and recorded under names that do
 #: not say which scene they are (the analysis must read the scene from the bag, not its name).
-FLOWN = {"spin-top": "rotor-euler", "pendulum-e": "gimbal-lock-pendulum", "pendulum-q": "gimbal-lock-pendulum-quaternion"}
+FLOWN = {"spin-top": "rotor-euler", "pendulum-e": "gimbal-lock-pendulum", "pendulum-q": "gimbal-lock-pendulum-quaternion",
+         "spin-down": "free-spin-canted"}
 
 
 @pytest.fixture(scope="module")
@@ -128,6 +129,27 @@ def test_a_rotor_gets_its_precessing_z_axis_track_and_no_fuel_or_altitude(flown:
     k = int(np.searchsorted(t, 12 * 2 * np.pi / 8.0))
     rate = (azimuth[k] - azimuth[0]) / t[k]
     assert rate == pytest.approx(0.625, rel=2 * 10 / 16**2)
+
+
+def test_free_space_gets_no_figure_of_flight_over_a_surface_in_analyse_or_the_summary(
+        flown: dict[str, tuple[Path, str]], tmp_path: Path) -> None:
+    """Scenario 8 at 1000 R, gravity only, no ground: its "altitude" is a radius of 3.4e9 m and the
+    attitude law's upright is not the local vertical, so altitude, climb rate, ground speed, tilt
+    and the hover's step figures are n/a in both reports, and no altitude plot is drawn; fuel
+    (the thrusters burn it) and the spin rate (the law slows it) are figures of it."""
+    bag, fly_out = flown["spin-down"]
+    last = next(line for line in fly_out.splitlines() if line.strip().startswith("last state:"))
+    assert last.strip() == ("last state: altitude n/a, climb rate n/a, ground speed n/a, tilt n/a, fuel "
+                            + last.rsplit("fuel ", 1)[1])
+    assert last.rsplit("fuel ", 1)[1].endswith(" kg")
+    r = _lander(str(bag), "--json", "--out", str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    m = json.loads(r.stdout)["flights"][0]
+    surface = ("final_altitude", "demand_altitude", "step_size", "settling_time", "overshoot_percent",
+               "steady_state_error", "hover_error_max")
+    assert {k: m[k] for k in surface} == dict.fromkeys(surface)
+    assert m["fuel_used"] > 0.0 and m["final_spin_rate"] < 0.8  # the scene starts at 0.8 rad/s
+    assert not (tmp_path / "flight-altitude.png").exists() and (tmp_path / "flight-attitude.png").is_file()
 
 
 def test_gimbal_lock_events_are_counted_as_lander_fly_counts_them(flown: dict[str, tuple[Path, str]]) -> None:

@@ -20,7 +20,6 @@ from typing import Any
 import pytest
 
 from lander_tools.fly.launch_plan import ARGS, NODE_WAIT_S, launch_plan
-from lander_tools.fly.processes import FLAT_OUT_LOCKSTEP_TIMEOUT
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH_FILE = REPO / "launch" / "fly.launch.py"
@@ -43,7 +42,7 @@ def test_a_flown_scene_starts_paused_in_lockstep_and_is_started_once_its_autopil
     assert plan.autopilot == {"scene": "hover", "controller": "combined", "use_sim_time": True}
     assert plan.ender == ["start", "--autopilot", "--until-end", *WAIT]
     assert plan.end_reason == "flight ended"
-    assert plan.sim_defaults == [] and plan.files == []
+    assert plan.files == []
     assert plan.env == {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}  # this machine only, as lander fly
 
 
@@ -68,10 +67,11 @@ def test_duration_is_the_sims_end_time_and_a_recording_ends_the_launch() -> None
     assert plan.end_reason == "recording ended"
 
 
-def test_flat_out_in_lockstep_the_sim_waits_out_a_slow_answer_unless_a_params_file_says_otherwise() -> None:
-    assert launch_plan(_args(speed="0"), _scene_controller).sim_defaults == [
-        {"lockstep_timeout": FLAT_OUT_LOCKSTEP_TIMEOUT}]
-    assert launch_plan(_args(speed="0", lockstep="false"), _scene_controller).sim_defaults == []
+def test_flat_out_the_sim_keeps_its_own_lockstep_timeout_and_a_params_file_sets_it() -> None:
+    """No launch value for ``lockstep_timeout`` at any speed: the node's default stands, or the
+    params file's (the autopilot answers every state within one period, even at the handover)."""
+    for speed in ("0", "1"):
+        assert "lockstep_timeout" not in launch_plan(_args(speed=speed), _scene_controller).sim
 
 
 def test_a_launch_argument_that_is_not_a_number_is_named() -> None:
@@ -139,7 +139,7 @@ def test_the_launch_file_declares_every_argument_and_starts_what_the_plan_says(m
     set_range, sim, on_sim_exit, autopilot, ender, on_ender_exit = actions
     assert set_range.args == ("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")  # before any process starts
     assert sim.kwargs["executable"] == "sim_node" and sim.kwargs["name"] == "lander_sim"
-    assert sim.kwargs["parameters"] == [*plan.sim_defaults, "p.yaml", plan.sim]
+    assert sim.kwargs["parameters"] == ["p.yaml", plan.sim]
     assert plan.sim["start_paused"] and plan.sim["end_time"] == 12.0
     assert autopilot.kwargs["executable"] == "autopilot_node"
     assert autopilot.kwargs["parameters"] == ["p.yaml", plan.autopilot]
@@ -173,7 +173,7 @@ def test_the_launched_flight_waits_for_its_autopilot_and_the_launch_ends_at_the_
 
     plan = launch_plan(_args(scene="hover", speed="0", duration="3"), scene_controller)
     assert plan.autopilot is not None
-    sim_params = {k: v for d in plan.sim_defaults for k, v in d.items()} | plan.sim
+    sim_params = dict(plan.sim)
     with start_node("lander_sim.node", sim_params, name="sim") as sim, \
             start_node("lander_autopilot.node", plan.autopilot, name="autopilot") as autopilot, \
             ChildProcess(["-m", "lander_tools.cli", *plan.ender], cwd=REPO, name="ender") as ender:

@@ -9,8 +9,9 @@ naming it (a leaked node is a defect) and dead processes' Fast DDS segments and 
 are removed. At session end (in the controller, under xdist) all dead processes' shm files go.
 
 In pytest-xdist workers (``./dev test`` runs ``-n auto --dist loadgroup``) each worker is a run of
-its own in the sense above (its own domain ids, held by lock files); the files that start ROS
-participants (``rosutil.ROS_TESTS``) run in one worker, the others file by file in any (README, "Tests in
+its own in the sense above (its own domain ids, held by lock files); the ROS test files that use
+Fast DDS's shared-memory transport (``rosutil.ROS_SHM_TESTS``) run in one worker, the others file
+by file in any, the other ROS files over UDP alone (``rosutil.transports_env``; README, "Tests in
 parallel").
 
 Fixtures for other tests:
@@ -65,7 +66,7 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         rel = Path(item.path).resolve().relative_to(TEST_DIR).as_posix()
-        item.add_marker(pytest.mark.xdist_group("ros" if rel.startswith(rosutil.ROS_TESTS) else rel))
+        item.add_marker(pytest.mark.xdist_group(rosutil.xdist_group(rel)))
     if config.getoption("--runslow"):
         return
     skip = pytest.mark.skip(reason="slow: run with --runslow")
@@ -84,14 +85,19 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 
 @pytest.fixture(scope="module", autouse=True)
-def module_ros_domain() -> Iterator[int]:
-    """A domain of the module's own (see the module docstring); yields its id."""
+def module_ros_domain(request: pytest.FixtureRequest) -> Iterator[int]:
+    """A domain of the module's own (see the module docstring), and the module's transports
+    (``rosutil.transports_env``); yields the domain's id."""
     # Walk on from the last module's id, so consecutive modules never share one.
     domain = rosutil.claim_domain_id(seed=next(_module_seeds))
     os.environ["ROS_DOMAIN_ID"] = str(domain)
+    transports = rosutil.transports_env(Path(request.path).resolve().relative_to(TEST_DIR).as_posix())
+    os.environ.update(transports)
     try:
         yield domain
     finally:
+        for name in transports:
+            os.environ.pop(name, None)
         os.environ["ROS_DOMAIN_ID"] = str(ROS_DOMAIN_ID)
         leaked = rosutil.reap_domain(domain)
         # A killed node's half-made port must not hang the next module; its dead ports with locks

@@ -23,16 +23,38 @@ from typing import Any
 DOMAIN_MIN, DOMAIN_MAX = 1, 101
 
 #: Test files (paths under test/, folders end in "/") that start ROS participants, in the test
-#: process or in child processes. Under pytest-xdist (``--dist loadgroup``; conftest sets the
-#: groups) they all run in one worker, one after the other as in a one-process run, while the other
-#: workers take the rest file by file: Fast DDS allocates shared-memory ports machine-wide
+#: process or in child processes. A new ROS test file belongs here.
+ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
+             "sweep/test_through_ros.py", "tools/test_analyse_command.py", "tools/test_deorbit_params_example.py",
+             "tools/test_flights_apart.py", "tools/test_headline_flight.py", "tools/test_launch_file.py",
+             "tools/test_record_command.py", "test_cli.py")
+
+#: The ROS test files that keep Fast DDS's default transports (shared memory beside UDP), as a
+#: user's flight does. Under pytest-xdist (``--dist loadgroup``; conftest sets the groups) they run
+#: in one worker, one after the other: Fast DDS allocates shared-memory ports machine-wide
 #: (``fastdds_port7000`` up, whatever the domain), and when two workers start participants at once
 #: on a loaded machine, a participant's wait for a port's mutex times out and it breaks the mutex
 #: (eProsima/Fast-DDS#6117). Seen in two workers: "Failed init_port fastdds_port7001:
-#: open_and_lock_file failed", and a flight whose nodes never met. A new ROS test file belongs here.
-ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
-             "sweep/test_through_ros.py", "tools/test_deorbit_params_example.py", "tools/test_flights_apart.py",
-             "tools/test_headline_flight.py", "tools/test_launch_file.py", "tools/test_record_command.py", "test_cli.py")
+#: open_and_lock_file failed", and a flight whose nodes never met. The other ROS files run file by
+#: file in any worker over UDP alone (:data:`UDP_ONLY`, set for their whole module), which opens no
+#: shared-memory port.
+ROS_SHM_TESTS = ("reliability/", "flights/test_new_user.py", "tools/test_flights_apart.py", "test_cli.py")
+
+#: Environment of a ROS test file outside :data:`ROS_SHM_TESTS`: Fast DDS's built-in transports
+#: limited to UDPv4 (read by every participant at its creation; children inherit it).
+UDP_ONLY = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+
+
+def xdist_group(rel: str) -> str:
+    """The pytest-xdist group of the test file ``rel`` (its path under test/): ``ros`` for the
+    files that share the shared-memory transport, else the file itself (any worker takes it)."""
+    return "ros" if rel.startswith(ROS_SHM_TESTS) else rel
+
+
+def transports_env(rel: str) -> dict[str, str]:
+    """Environment variables the test file ``rel`` runs under (see :data:`ROS_SHM_TESTS`)."""
+    return UDP_ONLY if rel.startswith(ROS_TESTS) and not rel.startswith(ROS_SHM_TESTS) else {}
+
 
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"
 _held_locks: dict[int, Any] = {}  # domain -> its open lock file (held until released or exit)

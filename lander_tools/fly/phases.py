@@ -46,10 +46,10 @@ from lander_tools.fly.plan import (
 )
 from lander_tools.fly.processes import NodeProcess, node_commands, stop_all
 from lander_tools.fly.summary import final_state
-from lander_tools.metrics_fit import scene_facts
 from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call, stall_reason
 from lander_tools.fly.timeline import Stop, apply_now, arm, control_period, split_timeline
 from lander_tools.live.bridge import command as live_command
+from lander_tools.metrics_fit import scene_facts
 from lander_tools.progress import Progress
 
 #: Wall seconds to wait for a lockstep autopilot's answer to state 1, and resets tried in all.

@@ -171,15 +171,20 @@ class FlightLink:
             return self._clients[name]
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float = CALL_TIMEOUT,
-             ask_again: float | None = None) -> Any:
+             ask_again: float | None = None, confirm: Callable[[], Any] | None = None) -> Any:
         """Call service ``name`` and return its response; :class:`NoFlight` if it is not there,
         ``TimeoutError`` if it does not answer in ``timeout`` s.
 
+        A service is "available" once this client's requests reach it; the server's reply reaches
+        this client only if the server has matched this client's reply reader within 100 ms of
+        sending it (rmw_fastrtps; rclpy then logs "failed to send response (timeout)" in the
+        server and drops the reply), which a fresh client on a loaded machine can miss.
+
         ``ask_again`` [s], for a request that changes nothing (a query): sent again at that interval
-        until answered. A service is "available" once this client's requests reach it; the server's
-        replies reach this client only once the server has matched its reply reader too, and a reply
-        sent before that is lost (seen with a fresh client under load: no answer in 10 s). A second
-        request finds the reply path matched. Never for a request that acts (step, switch, set)."""
+        until answered; a second request finds the reply path matched. Never for a request that
+        acts (step, switch, set). For one that acts, ``confirm`` (called every :data:`ASK_AGAIN` s
+        while no reply has come) reads back through a query whether the request took effect: its
+        value, if not None, is returned in place of the reply."""
         client = self._client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
             raise NoFlight(f"service {name} not available within {timeout:g} s (is a flight running?)")
@@ -188,9 +193,19 @@ class FlightLink:
             done = threading.Event()
             fut = client.call_async(request)
             fut.add_done_callback(lambda _f, d=done: d.set())
-            left = deadline - time.monotonic()
-            if done.wait(max(left, 0.0) if ask_again is None else min(ask_again, max(left, 0.0))):
-                return fut.result()
+            while True:
+                left = max(deadline - time.monotonic(), 0.0)
+                if done.wait(left if ask_again is None and confirm is None else min(ask_again or ASK_AGAIN, left)):
+                    return fut.result()
+                if confirm is not None and left > 0.0:
+                    seen = confirm()
+                    if done.is_set():  # the reply came while the read-back was asked: it speaks
+                        return fut.result()
+                    if seen is not None:
+                        client.remove_pending_request(fut)
+                        return seen
+                    continue
+                break
             client.remove_pending_request(fut)
             if ask_again is None or time.monotonic() >= deadline:
                 raise TimeoutError(f"service {name} did not answer within {timeout:g} s")
@@ -215,10 +230,28 @@ class FlightLink:
         return Outcome(bool(resp.success), resp.message, extra or None)
 
     def switch_controller(self, controller: str, parameters_yaml: str = "") -> Outcome:
+        """Swap the autopilot's controller (``/autopilot/switch_controller``). Should the reply be
+        lost (:meth:`call`), the autopilot's ``controller`` and ``controller_params`` read back
+        tell whether the switch was made, when they differed from the request's before it."""
         from lander_interfaces.srv import SwitchController
 
+        names = ["controller", "controller_params"]
+        before = self.get_parameters(AUTOPILOT_NODE, names)
+        asked = {"controller": controller, "controller_params": parameters_yaml}
+
+        def made() -> Outcome | None:
+            now = self.get_parameters(AUTOPILOT_NODE, names)
+            if now != asked:
+                return None
+            return Outcome(True, f"switched {before['controller']!r} -> {controller!r} (the autopilot's reply was "
+                                 "lost on the way; its parameters read back show the switch made)",
+                           {"active_controller": controller})
+
         resp = self.call(SwitchController, "/autopilot/switch_controller",
-                         SwitchController.Request(controller=controller, parameters_yaml=parameters_yaml))
+                         SwitchController.Request(controller=controller, parameters_yaml=parameters_yaml),
+                         confirm=made if before != asked else None)
+        if isinstance(resp, Outcome):
+            return resp
         return Outcome(bool(resp.success), resp.message or f"active controller: {resp.active_controller}",
                        {"active_controller": resp.active_controller})
 

@@ -55,7 +55,7 @@ def test_switch_flies_a_gains_file_while_flying(module_ros_domain: int, tmp_path
         wait_flight_running(flight)
         done = subprocess.run([sys.executable, "-m", "lander_tools.cli", "switch", "--gains", str(gains)],
                               capture_output=True, text=True, timeout=120)
-        assert done.returncode == 0, done.stderr
+        assert done.returncode == 0, done.stderr + flight.output()
         assert done.stdout.startswith("lander switch: switched 'combined-quaternion' -> 'combined'"), done.stdout
         with FlightLink("test_switch_gains") as link:
             now = link.get_parameters("/autopilot", ["controller", "controller_params"])

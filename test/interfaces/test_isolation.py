@@ -141,11 +141,12 @@ def _starts_ros(path: Path) -> list[str]:
     return found
 
 
-def test_every_test_file_that_starts_ros_participants_runs_in_the_ros_worker():
-    """rosutil.ROS_TESTS puts them in one pytest-xdist worker (see there why); one left out would
-    start participants beside the other worker's again. The check reads the code for the usual ways
-    in (``_starts_ros``); the node tests' own fixtures (a folder's conftest) it does not follow,
-    which is why ROS_TESTS names whole folders."""
+def test_every_test_file_that_starts_ros_participants_is_named_a_ros_test():
+    """rosutil.ROS_TESTS gives each of them its transports: the shared-memory ones in one
+    pytest-xdist worker, the others over UDP alone (see there why); one left out would open
+    shared-memory ports beside another worker's. The check reads the code for the usual ways in
+    (``_starts_ros``); the node tests' own fixtures (a folder's conftest) it does not follow, which
+    is why ROS_TESTS names whole folders."""
     test_dir = HERE.parent
     missed = {}
     for path in sorted(test_dir.rglob("test_*.py")):

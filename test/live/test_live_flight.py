@@ -319,22 +319,30 @@ def test_pause_step_resume_reset(live: dict[str, Any], capfd: pytest.CaptureFixt
 
 def test_a_paused_flight_stays_paused_past_the_launchers_stall_watch_and_resumes(
         live: dict[str, Any], capfd: pytest.CaptureFixture[str]) -> None:
-    """Paused from a verb for longer than the launcher waits for a state from a running flight:
-    the flight is still there, the autopilot has not called the state lost, and it resumes."""
+    """Paused from a verb for two minutes, four times as long as the launcher waits for a state
+    from a running flight: the flight is still there and still paused, the autopilot has not
+    called the state lost, and it resumes."""
     import time
 
     from lander_tools.fly.phases import STALL_TIMEOUT
 
     fly = live["fly"]
     code, out, err = run(capfd, "pause")
-    assert code == 0, err
+    assert code == 0 and out.startswith("lander pause: paused at t = "), err
+    t_paused = float(out.split("t = ")[1].split()[0])
     paused_wall, seen = time.monotonic(), len(fly.output())
-    # The property is a duration: the wait ends at the stall watch's limit and some reports after.
-    wait_until(lambda: fly.returncode is not None or time.monotonic() - paused_wall > STALL_TIMEOUT + 3.0,
-               STALL_TIMEOUT + 30.0, "the stall watch's limit to pass")
+    # The property is a duration: the wait ends two minutes after the pause (past the stall
+    # watch's limit and some reports after it) or when the flight ends, which it must not.
+    paused_for = max(120.0, STALL_TIMEOUT + 3.0)
+    wait_until(lambda: fly.returncode is not None or time.monotonic() - paused_wall > paused_for,
+               paused_for + 30.0, "two minutes of pause")
     during = fly.output()[seen:]
     assert fly.returncode is None, during
     assert "state lost" not in during and "no state from the simulator" not in during, during
+    # Still paused where it stopped: one step goes one period on from the paused instant.
+    code, out, err = run(capfd, "step", "1")
+    assert code == 0, err
+    assert math.isclose(float(out.rsplit("sim_time ", 1)[1]), t_paused + DT, abs_tol=1e-9), out
     code, out, err = run(capfd, "resume")
     assert code == 0 and out.startswith("lander resume: resumed"), err
     t_resumed = _state(live["client"])["t"]

@@ -168,7 +168,8 @@ def test_plots_table_json_and_comparison(tmp_path: Path) -> None:
     assert paths2[-1].name == "cmp-ztrack.png"  # rotor flights get the Figure 1 z-axis track
     for p in paths + paths2:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    ma, mb = metrics(fa), metrics(fb)
+    write_flight_bag(tmp_path / "b", t, 500.0 + 2 * e, 2 * de, demand=[(0.0, 500.0)])
+    ma, mb = metrics(fa), metrics(Flight.from_bag(read_bag(tmp_path / "b"), name="b"))
     doc = json.loads(to_json([ma, mb]))
     # The doubled error takes longer to reach the same 0.5 m band: the difference is positive.
     assert doc["differences"]["b"]["settling_time"] == pytest.approx(mb.settling_time - ma.settling_time)

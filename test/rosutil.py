@@ -57,15 +57,34 @@ def transports_env(rel: str) -> dict[str, str]:
 
 
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"
+#: The domains ``lander fly`` holds for its flights (lander_tools.fly.domain.LOCK_DIR): a test
+#: never claims one a user's flight on this machine flies in.
+_FLIGHT_LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_domains"
 _held_locks: dict[int, Any] = {}  # domain -> its open lock file (held until released or exit)
 
 
+def _flight_holds(domain: int) -> bool:
+    """A ``lander fly`` flight holds ``domain`` now (its lock file is locked; no file: none)."""
+    try:
+        f = open(_FLIGHT_LOCK_DIR / f"{domain}.lock")
+    except OSError:
+        return False
+    with f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        return False
+
+
 def claim_domain_id(seed: int | None = None) -> int:
-    """A ROS_DOMAIN_ID in 1..101 that no other live test run on this machine holds.
+    """A ROS_DOMAIN_ID in 1..101 that no other live test run on this machine holds and no user's
+    ``lander fly`` flight flies in.
 
     Starts from one derived from ``seed`` (default: this pid) and walks up until it can take an
-    exclusive lock on ``/tmp/mars_lander_test_domains/<id>.lock``; the lock dies with the process,
-    so a crashed run frees its id.
+    exclusive lock on ``/tmp/mars_lander_test_domains/<id>.lock`` (which ``lander fly`` never
+    picks) of a domain whose flight lock (``/tmp/mars_lander_domains/<id>.lock``) nobody holds;
+    the locks die with their processes, so a crashed run frees its id.
     """
     _LOCK_DIR.mkdir(parents=True, exist_ok=True)
     span = DOMAIN_MAX - DOMAIN_MIN + 1
@@ -76,6 +95,9 @@ def claim_domain_id(seed: int | None = None) -> int:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
+            f.close()
+            continue
+        if _flight_holds(domain):
             f.close()
             continue
         _held_locks[domain] = f

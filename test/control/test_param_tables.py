@@ -40,6 +40,22 @@ def vehicle():
 SCENE = {"deorbit": "deorbit", "deorbit-mpc": "deorbit", "landing": "landing", "ground-speed": "ground-speed"}
 
 
+def test_each_built_in_is_listed_under_its_own_name_and_a_process_imports_only_the_law_it_flies():
+    """The registry names each built-in law as the law names itself; building one law imports
+    neither the de-orbit laws nor their solvers (a fresh interpreter, as a node starts)."""
+    import subprocess
+    import sys
+
+    assert {name: BUILTINS[name].name for name in BUILTINS} == {name: name for name in BUILTINS}
+    probe = ("import sys; from lander_autopilot.controllers import make_controller; "
+             "from lander_sim.scenes.vehicles import lander; "
+             "make_controller('combined-quaternion', lander()); "
+             "print(sorted(m for m in ('lander_autopilot.controllers.deorbit', 'lander_autopilot.guidance.fuel_optimal', "
+             "'numba', 'cvxpy', 'clarabel') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_the_registry_lists_every_law_with_its_table(capsys):
     from argparse import Namespace
 

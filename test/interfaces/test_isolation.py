@@ -52,6 +52,23 @@ def test_domain_claims_are_distinct_while_held():
         rosutil.release_domain_id(b)
 
 
+def test_a_domain_a_users_flight_holds_is_never_claimed_by_a_test():
+    """`lander fly` holds its domain by a lock (lander_tools.fly.domain); a test claiming domains
+    walks past it, as two test runs walk past each other's."""
+    from lander_tools.fly.domain import hold_domain
+
+    own = int(os.environ["ROS_DOMAIN_ID"])
+    first = rosutil.claim_domain_id(seed=own)
+    rosutil.release_domain_id(first)  # the id the next claim from this seed would take
+    flight = hold_domain(first)
+    try:
+        claimed = rosutil.claim_domain_id(seed=own)
+        rosutil.release_domain_id(claimed)
+        assert claimed != first
+    finally:
+        flight.release()
+
+
 def test_shm_of_killed_process_is_cleaned_and_live_one_kept(spawn_python):
     prefix = f"/iso_{uuid.uuid4().hex[:8]}"
     victim = spawn_python([str(HERE / "sample_node.py"), prefix], name="victim")

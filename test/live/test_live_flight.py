@@ -392,6 +392,50 @@ def test_student_page_in_chromium_sets_the_demand_and_the_flight_follows(
             browser.close()
 
 
+def test_gains_designed_are_flown_from_the_page_and_shown_in_force(live: dict[str, Any], tmp_path: Path) -> None:
+    """The gains `lander design --write` gives, typed into the page's controller fields: the
+    autopilot flies that controller with those gains, every bit, and the page's instruments say so."""
+    import yaml
+    from playwright.sync_api import sync_playwright
+
+    from lander_tools.gains import read_gains
+    from lander_tools.live.link import FlightLink
+
+    gains = tmp_path / "gains.yaml"
+    assert lander(["design", "hover-canted", "--altitude-poles", "-0.5", "-0.6", "--write", str(gains)]) == 0
+    controller, params = read_gains(gains)
+    text = yaml.safe_dump(params, default_flow_style=True, sort_keys=True, width=1_000_000).strip()
+    with FlightLink("test_page_gains") as link:
+        before = link.get_parameters("/autopilot", ["controller", "controller_params"])
+    url = f"http://127.0.0.1:{live['page_port']}/"
+    with sync_playwright() as pw:
+        browser = launch_chromium(pw)
+        try:
+            page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
+            errors = console_errors(page)
+            page.goto(url)
+            page.wait_for_function("window.liveStats && window.liveStats.states > 5", timeout=30_000)
+            page.fill("#controller-input", controller)
+            page.fill("#params-input", text)
+            page.click("#switch")
+            page.wait_for_function(f"document.getElementById('i-controller').textContent === {json.dumps(controller)}"
+                                   f" && document.getElementById('i-gains').textContent === {json.dumps(text)}",
+                                   timeout=30_000)
+            with FlightLink("test_page_gains") as link:
+                now = link.get_parameters("/autopilot", ["controller", "controller_params"])
+            assert now["controller"] == controller
+            assert yaml.safe_load(now["controller_params"]) == params  # the designed gains, every bit
+            # Back to the law the module's flight flew, from the page too.
+            page.fill("#controller-input", before["controller"])
+            page.fill("#params-input", before["controller_params"])
+            page.click("#switch")
+            page.wait_for_function("document.getElementById('i-controller').textContent === "
+                                   f"{json.dumps(before['controller'])}", timeout=30_000)
+            assert errors == []
+        finally:
+            browser.close()
+
+
 def test_3d_view_and_instruments_follow_the_flight_and_settings_from_the_cli(
         live: dict[str, Any], capfd: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     """The page's 3-D view draws the body in the state's attitude (read back from the view: its z

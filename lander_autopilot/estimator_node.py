@@ -36,12 +36,14 @@ from collections import deque
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, Range
 from std_srvs.srv import Trigger
 
 from lander_autopilot.estimation.flights import initial_covariance, initial_error_rng, start_filter
@@ -61,7 +63,6 @@ from lander_ros.delivery import FLUSH_TIMEOUT, OUTPUT_QOS, flush, run_node_proce
 from lander_ros.flight_span import SENSOR_KEYS, SENSOR_TOPICS, format_matched
 from lander_ros.params import check_overrides
 from lander_ros.strangers import InputGuard, with_message_info
-from lander_sim.ros.sensor_out import message_types
 from lander_sim.scenes import load_scene
 
 #: Every message of a flight is needed (a lost reading would stall its tick): a deep reliable queue.
@@ -97,7 +98,8 @@ class EstimatorNode(Node):
         self._pub_state = self.create_publisher(LanderState, STATE_TOPIC, OUTPUT_QOS)
         self._sub_state = self.create_subscription(LanderState, "/lander/state", with_message_info(self._on_state),
                                                    _INPUT_QOS)
-        types = message_types()
+        types = {"imu": Imu, "star_tracker": PoseWithCovarianceStamped, "altimeter": Range,
+                 "doppler": TwistWithCovarianceStamped, "ground_fix": Odometry}  # docs/sim_node.md, "Sensors"
         self._subs = {}
         for key, topic in zip(SENSOR_KEYS, SENSOR_TOPICS):
             if key in scene.sensors:

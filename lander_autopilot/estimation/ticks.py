@@ -159,8 +159,8 @@ class TickFeeder:
             raise RuntimeError(f"TickFeeder.advance({t_ns}) before its readings are in")
         imu = self.queues["imu"]
         while imu and imu[0].t_ns <= t_ns:
-            r = imu.popleft()
-            if not any(s[1] is r for s in steps):
+            popped = imu.popleft()
+            if not any(s[1] is popped for s in steps):
                 self.unexpected += 1  # an IMU reading off its schedule: not used
         out: list[Update] = []
         for t_i, r, keys in steps:
@@ -215,6 +215,7 @@ class TickFeeder:
             self.dropouts[key] += 1
             return None
         f = self.filter
+        u: Update | None
         try:
             if key == "star_tracker":
                 u = f.update_star_tracker(r.z, r.sigma)

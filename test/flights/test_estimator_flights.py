@@ -113,8 +113,9 @@ def test_landing_sensors_lands_on_the_estimate_under_1_m_s(landing) -> None:
 def test_the_node_estimate_is_the_core_filter_fed_the_same_messages_bit_for_bit(landing) -> None:
     """Over the whole landing: the star tracker from the start, the altimeter and Doppler from 4 km
     down (their "no readings" above), the touchdown's last partial step."""
-    from lander_interfaces.msg import LanderState
     from nav_msgs.msg import Odometry
+
+    from lander_interfaces.msg import LanderState
 
     got = _messages(landing[1])
     states = [m for _, m in got["/lander/state"]]

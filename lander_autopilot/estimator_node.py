@@ -164,7 +164,7 @@ class EstimatorNode(Node):
             return
         if msg.sequence <= self._last_sequence:  # a reset: a new flight from its first state
             self.get_logger().info(f"state {msg.sequence} after {self._last_sequence}: the flight was reset")
-            self.feeder.reset()
+            self.feeder.restart()
             self._ticks.clear()
         self._last_sequence = msg.sequence
         if self.feeder.filter is None:

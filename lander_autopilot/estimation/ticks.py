@@ -86,9 +86,20 @@ class TickFeeder:
 
     def reset(self) -> None:
         """Forget the flight: no filter, empty buffers, the schedule at ``t = 0``."""
+        self.queues: dict[str, deque[Reading]] = {key: deque() for key in self.rates}
+        self._last_added: dict[str, int | None] = dict.fromkeys(self.rates)
+        self._fresh = dict.fromkeys(self.rates, False)
+        self.restart()
+
+    def restart(self) -> None:
+        """A new flight (the simulator was reset): no filter, the schedule at ``t = 0``, and of the
+        buffered readings only those of the new flight (see :meth:`add`)."""
+        for key, fresh in self._fresh.items():
+            if not fresh:
+                self.queues[key].clear()
+        self._fresh = dict.fromkeys(self.rates, False)
         self.filter = None
         self.schedule = SampleSchedule(self.rates)
-        self.queues: dict[str, deque[Reading]] = {key: deque() for key in self.rates}
         self.t_ns: int | None = None  # stamp of the last IMU reading applied
         self.omega_m = np.zeros(3)
         self.updates = 0
@@ -103,11 +114,20 @@ class TickFeeder:
         self.filter = filt
 
     def add(self, reading: Reading) -> None:
-        """Buffer one reading; a sensor the scene does not switch on is counted unexpected."""
+        """Buffer one reading; a sensor the scene does not switch on is counted unexpected.
+
+        One sensor's stamps increase within a flight, so a stamp not after the sensor's previous
+        one starts a new flight (a reset, whose readings at ``t = 0`` go out before its first
+        state): the sensor's readings of the old flight still buffered are dropped."""
         q = self.queues.get(reading.key)
         if q is None:
             self.unexpected += 1
             return
+        last = self._last_added[reading.key]
+        if last is not None and reading.t_ns <= last:
+            q.clear()
+            self._fresh[reading.key] = True
+        self._last_added[reading.key] = reading.t_ns
         q.append(reading)
 
     def _steps(self, sched: SampleSchedule, t_ns: int) -> list[tuple[int, Reading | None, list[str]]] | None:

@@ -137,3 +137,31 @@ def test_a_tick_ending_on_a_step_without_the_imu_is_ready_without_it(flight):
     assert f.ready(t_touch)
     f.advance(t_touch)
     assert f.t_ns == first[0].t_ns and f.unexpected == 0
+
+
+def test_a_reset_keeps_the_new_flights_first_readings_that_came_before_its_first_state(flight):
+    """The simulator publishes a reset's readings at t = 0 before its state 1: the readings of the old
+    flight still buffered are dropped, the new flight's kept, and its tick 0 is ready after the restart."""
+    scene, y0, ticks = flight
+    f = _feeder(scene, y0)
+    for t, rs in ticks[:5]:
+        for r in rs:
+            f.add(r)
+        f.advance(t)
+    for r in ticks[5][1][:3]:  # part of a tick of the old flight, never completed
+        f.add(r)
+    for r in ticks[0][1]:  # the new flight's t = 0 readings, then its state 1
+        f.add(r)
+    f.restart()
+    g = scene.models.get("gravity")
+    f.start(start_filter(scene.sensors, y0[0:3], y0[3:6], y0[6:10], 0.0, initial_covariance(scene.sensors),
+                         initial_error_rng(scene.sensors.seed), float(g.gm), float(g.radius)))
+    assert f.ready(0)
+    f.advance(0)
+    assert all(not q for q in f.queues.values()) and f.unexpected == 0
+    ref = _feeder(scene, y0)
+    for r in ticks[0][1]:
+        ref.add(r)
+    ref.advance(0)
+    assert np.array_equal(f.filter.state.P, ref.filter.state.P)
+    assert np.array_equal(f.filter.state.q, ref.filter.state.q)

@@ -101,9 +101,12 @@ class EstimatorNode(Node):
         types = {"imu": Imu, "star_tracker": PoseWithCovarianceStamped, "altimeter": Range,
                  "doppler": TwistWithCovarianceStamped, "ground_fix": Odometry}  # docs/sim_node.md, "Sensors"
         self._subs = {}
+        self._sensor_guards = {}
         for key, topic in zip(SENSOR_KEYS, SENSOR_TOPICS):
             if key in scene.sensors:
-                self._subs[topic] = self.create_subscription(types[key], topic, self._reader(key), _INPUT_QOS)
+                self._sensor_guards[key] = InputGuard(self._guard.active, ("/lander_sim",), topic, verbs=False)
+                self._subs[topic] = self.create_subscription(types[key], topic, with_message_info(self._reader(key)),
+                                                             _INPUT_QOS)
         self.create_service(Trigger, "/lander_estimator/matched", self._srv_matched)
 
         self._ticks: deque[Any] = deque()  # the simulator's states not yet answered with an estimate
@@ -147,7 +150,15 @@ class EstimatorNode(Node):
     # --- inputs --------------------------------------------------------------------------------
 
     def _reader(self, key: str):
-        def on_message(msg: Any) -> None:
+        guard, topic = self._sensor_guards[key], dict(zip(SENSOR_KEYS, SENSOR_TOPICS))[key]
+
+        def on_message(msg: Any, info: Any = None) -> None:
+            refusal = guard.refusal(info, lambda: self.get_publishers_info_by_topic(topic))
+            if refusal is not None:  # another flight's simulator: said once, then counted
+                self.refused += 1
+                if refusal:
+                    self.get_logger().warning(refusal)
+                return
             r = convert.reading(key, msg)
             if key == "imu" and r.sigma is not None:
                 self._gyro_var = r.sigma[0:3] ** 2

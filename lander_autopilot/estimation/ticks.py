@@ -88,16 +88,17 @@ class TickFeeder:
         """Forget the flight: no filter, empty buffers, the schedule at ``t = 0``."""
         self.queues: dict[str, deque[Reading]] = {key: deque() for key in self.rates}
         self._last_added: dict[str, int | None] = dict.fromkeys(self.rates)
-        self._fresh = dict.fromkeys(self.rates, False)
+        self._first_of_flight: dict[str, Reading | None] = dict.fromkeys(self.rates)
         self.restart()
 
     def restart(self) -> None:
         """A new flight (the simulator was reset): no filter, the schedule at ``t = 0``, and of the
         buffered readings only those of the new flight (see :meth:`add`)."""
-        for key, fresh in self._fresh.items():
-            if not fresh:
-                self.queues[key].clear()
-        self._fresh = dict.fromkeys(self.rates, False)
+        for key, first in self._first_of_flight.items():
+            q = self.queues[key]
+            while q and q[0] is not first:
+                q.popleft()
+        self._first_of_flight = dict.fromkeys(self.rates)
         self.filter = None
         self.schedule = SampleSchedule(self.rates)
         self.t_ns: int | None = None  # stamp of the last IMU reading applied
@@ -117,16 +118,16 @@ class TickFeeder:
         """Buffer one reading; a sensor the scene does not switch on is counted unexpected.
 
         One sensor's stamps increase within a flight, so a stamp not after the sensor's previous
-        one starts a new flight (a reset, whose readings at ``t = 0`` go out before its first
-        state): the sensor's readings of the old flight still buffered are dropped."""
+        one may start a new flight (a reset, whose readings at ``t = 0`` go out before its first
+        state): it is remembered, and :meth:`restart` keeps the readings from it on. Without a
+        restart it is a stale reading, which :meth:`advance` drops and counts."""
         q = self.queues.get(reading.key)
         if q is None:
             self.unexpected += 1
             return
         last = self._last_added[reading.key]
         if last is not None and reading.t_ns <= last:
-            q.clear()
-            self._fresh[reading.key] = True
+            self._first_of_flight[reading.key] = reading
         self._last_added[reading.key] = reading.t_ns
         q.append(reading)
 
@@ -139,7 +140,7 @@ class TickFeeder:
         last = None
         for r in self.queues["imu"]:
             if r.t_ns > t_ns:
-                break
+                continue  # a later tick's
             due = sched.due(r.t_ns * 1e-9)
             if "imu" not in due:
                 continue  # off its schedule: advance() drops it
@@ -177,11 +178,11 @@ class TickFeeder:
         steps = self._steps(self.schedule, t_ns)
         if steps is None:
             raise RuntimeError(f"TickFeeder.advance({t_ns}) before its readings are in")
-        imu = self.queues["imu"]
-        while imu and imu[0].t_ns <= t_ns:
-            popped = imu.popleft()
-            if not any(s[1] is popped for s in steps):
-                self.unexpected += 1  # an IMU reading off its schedule: not used
+        used = [s[1] for s in steps]
+        later = deque(r for r in self.queues["imu"] if r.t_ns > t_ns)
+        # an IMU reading of this tick off its schedule (a stale stamp) is not used
+        self.unexpected += len(self.queues["imu"]) - len(later) - sum(r is not None for r in used)
+        self.queues["imu"] = later
         out: list[Update] = []
         for t_i, r, keys in steps:
             if r is not None:

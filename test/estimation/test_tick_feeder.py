@@ -165,3 +165,20 @@ def test_a_reset_keeps_the_new_flights_first_readings_that_came_before_its_first
     ref.advance(0)
     assert np.array_equal(f.filter.state.P, ref.filter.state.P)
     assert np.array_equal(f.filter.state.q, ref.filter.state.q)
+
+
+def test_a_stale_reading_is_dropped_and_counted_and_changes_nothing(flight):
+    """A reading stamped before its sensor's last (a stranger's, a replay) is no step of the flight."""
+    scene, y0, ticks = flight
+    ref = _fly(scene, y0, ticks[:20], None)
+    f = _feeder(scene, y0)
+    stale = [r for r in ticks[3][1] if r.key == "imu"][0]
+    for k, (t, rs) in enumerate(ticks[:20]):
+        for r in rs:
+            f.add(r)
+        if k == 10:
+            f.add(stale)
+        f.advance(t)
+    assert f.unexpected == 1
+    assert np.array_equal(f.filter.state.P, ref.filter.state.P)
+    assert np.array_equal(f.filter.state.r_W, ref.filter.state.r_W)

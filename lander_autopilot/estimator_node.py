@@ -205,11 +205,14 @@ class EstimatorNode(Node):
                 return
             self._ticks.popleft()
             self._waiting_since = None
-            rejected = self.feeder.rejected
+            rejected, unexpected = self.feeder.rejected, self.feeder.unexpected
             self.feeder.advance(t_ns)
             if self.feeder.rejected > rejected:
                 self.get_logger().warning(f"reading refused (#{self.feeder.rejected}): {self.feeder.last_error}",
                                           throttle_duration_sec=1.0)
+            if self.feeder.unexpected > unexpected:
+                self.get_logger().warning(f"reading dropped (#{self.feeder.unexpected}): its stamp is no due instant "
+                                          f"of its sensor in state {truth.sequence}'s tick", throttle_duration_sec=1.0)
             est = self.feeder.estimate()
             convert.fill_state(self._state_msg, truth, est, self._gimbal_threshold)
             self._pub_state.publish(self._state_msg)

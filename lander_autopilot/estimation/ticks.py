@@ -71,8 +71,8 @@ class TickFeeder:
     :meth:`start` (the filter at the flight's first instant), :meth:`add` every reading, and when
     :meth:`ready` says a tick's readings are in, :meth:`advance` to it. Counts: ``dropouts`` (no
     readings, per sensor), ``unexpected`` (a reading whose stamp is no due instant of its sensor,
-    dropped), ``unused`` (readings at a step without an IMU reading), ``rejected`` (bad values refused by the filter, whose ``EstimationError`` text is kept
-    in ``last_error``)."""
+    dropped), ``unused`` (readings at a step without an IMU reading), ``rejected`` (bad values
+    refused by the filter, whose ``EstimationError`` text is kept in ``last_error``)."""
 
     def __init__(self, sensors: SensorsConfig) -> None:
         if "imu" not in sensors.sections:

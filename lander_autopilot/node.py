@@ -16,6 +16,10 @@ One control step, once per state the simulator publishes (it publishes at the co
                                                                       -> /autopilot/status
                                      (timed: lander_autopilot.ros.loop_stats) -> /diagnostics
 
+With ``state_source: estimate`` the states come from the estimator node's ``/lander/estimate/state``
+(the same message type, filled from the navigation filter; lander_autopilot.estimator_node) and
+nothing else changes: the controller flies on the estimate as it flies on the truth.
+
 ``/diagnostics`` (``DiagnosticArray``): the control loop's figures (control period, compute time
 per period, overruns) and the controller's own ``diagnostics()`` when it has one, once per second
 of sim time and at every mode change (docs/autopilot_node.md, "/diagnostics").
@@ -62,6 +66,7 @@ from lander_autopilot.ros.config import (
     NODE_NAME,
     PARAMETER_NAMES,
     SPECS,
+    STATE_SOURCES,
     ConfigError,
     check_state_timeout,
     check_string,
@@ -124,7 +129,12 @@ class AutopilotNode(Node):
         demand = self._declare("demand_altitude", wanted.demand_altitude)
         self._state_timeout = check_state_timeout(self._declare("state_timeout", DEFAULT_STATE_TIMEOUT))
         # A launched flight's autopilot takes states only from its flight's simulator (lander_ros.strangers).
-        self._guard = InputGuard(bool(self._declare("flight_id", "")), ("/lander_sim",), "/lander/state", verbs=False)
+        # The states flown on: the simulator's truth or the estimator's estimate (parameter state_source).
+        source = self._declare("state_source", "truth")
+        if source not in STATE_SOURCES:
+            raise ConfigError(f"parameter 'state_source' = {source!r} must be one of {', '.join(STATE_SOURCES)}")
+        self._state_topic, publisher = STATE_SOURCES[source]
+        self._guard = InputGuard(bool(self._declare("flight_id", "")), (publisher,), self._state_topic, verbs=False)
         # Before any subscription or timer exists: importing python-control holds the GIL for
         # seconds in stretches, and in a background thread it starved the control steps, so the
         # first states of a lockstep flight waited out the simulator's timeout (measured: 10 states
@@ -149,7 +159,7 @@ class AutopilotNode(Node):
         self._pub_status = self.create_publisher(AutopilotStatus, "/autopilot/status", OUTPUT_QOS)
         self._pub_events = self.create_publisher(FlightEvent, "/lander/events", _EVENT_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
-        self._sub_state = self.create_subscription(LanderState, "/lander/state", with_message_info(self._on_state),
+        self._sub_state = self.create_subscription(LanderState, self._state_topic, with_message_info(self._on_state),
                                                    _FLIGHT_STATE_QOS if self._guard.active else _STATE_QOS)
         self.create_subscription(Float64, "/lander/demand_altitude", self._on_demand, _DEMAND_QOS)
         self.create_subscription(Vector3Stamped, "/lander/demand_velocity", self._on_demand_velocity, _DEMAND_QOS)
@@ -226,7 +236,7 @@ class AutopilotNode(Node):
     # --- control step ------------------------------------------------------------------------
 
     def _on_state(self, msg: LanderState, info=None) -> None:
-        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic("/lander/state"))
+        refusal = self._guard.refusal(info, lambda: self.get_publishers_info_by_topic(self._state_topic))
         if refusal is not None:  # another flight's simulator: announced once, then counted
             if refusal:
                 self._refuse(refusal, self._last_stamp)
@@ -333,12 +343,13 @@ class AutopilotNode(Node):
         self.get_logger().info(f"demand velocity {self.slot.demand.velocity} m/s (east, north)")
 
     def _srv_matched(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-        """Publishers matched by the state reader (``sub:/lander/state``) and subscriptions matched by
+        """Publishers matched by the state reader (``sub:/lander/state``, or ``sub:/lander/estimate/state``
+        flying on the estimate) and subscriptions matched by
         the throttle writer (``/lander/throttle``), as the sim's ``/lander/subscribers`` says them."""
         from lander_ros.flight_span import format_matched
 
         response.success = True
-        response.message = format_matched({"sub:/lander/state": self._sub_state.get_publisher_count(),
+        response.message = format_matched({f"sub:{self._state_topic}": self._sub_state.get_publisher_count(),
                                            "/lander/throttle": self._pub_throttle.get_subscription_count(),
                                            "/diagnostics": self._pub_diag.get_subscription_count()})
         return response
@@ -446,7 +457,7 @@ class AutopilotNode(Node):
         if now >= self._next_lost_report:
             self._next_lost_report = now + self._state_timeout
             what = "no state received yet" if self._last_state_wall is None else "state lost"
-            self.slot.last_error = f"{what}: nothing on /lander/state for {now - since:.1f} s; sending no commands"
+            self.slot.last_error = f"{what}: nothing on {self._state_topic} for {now - since:.1f} s; sending no commands"
             # Before the first state this is a start-up (a launcher resets the sim once all are matched):
             # in the status, not a warning at every start; a lost stream is a warning.
             (self.get_logger().warning if self._last_state_wall is not None else self.get_logger().debug)(

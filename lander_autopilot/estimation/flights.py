@@ -62,21 +62,33 @@ def initial_covariance(sensors: SensorsConfig, sigma: tuple[float, float, float]
 
 def make_filter(sensors: SensorsConfig, sim: Simulation, P0: np.ndarray, rng: np.random.Generator) -> NavFilter:
     """A filter started at the truth plus an error drawn from ``P0`` (biases: estimate 0)."""
+    g = sim.scene.models.get("gravity")
+    if g is None or g.kind != "inverse-square":
+        raise ValueError(f"scene {sim.scene.name}: the filter's gravity model needs models.gravity.kind: inverse-square")
+    y = sim.y
+    return start_filter(sensors, y[0:3], y[3:6], y[6:10], sim.t, P0, rng, float(g.gm), float(g.radius))
+
+
+def start_filter(sensors: SensorsConfig, r_W: np.ndarray, v_W: np.ndarray, q: np.ndarray, t: float,
+                 P0: np.ndarray, rng: np.random.Generator, gm: float, planet_radius: float) -> NavFilter:
+    """A filter at time ``t`` [s] started at the true ``r_W``, ``v_W``, ``q`` plus an error drawn from
+    ``P0`` (biases: estimate 0); ``gm`` [m^3/s^2] and ``planet_radius`` [m]: the scene's gravity."""
     imu = sensors.sections["imu"]
     noise = NoiseModel(float(imu["gyro_noise_density"]), float(imu["accel_noise_density"]),
                        float(imu["gyro_bias_walk"]), float(imu["accel_bias_walk"]))
-    y = sim.y
     sd = np.sqrt(np.diag(P0))
     n = rng.standard_normal(9)
     # truth = estimate + error, so the estimate is truth - error (the attitude: q_true = q_est x dq(th))
     th = sd[6:9] * n[6:9]
-    q = quat_mult(y[6:10], small_rotation(-th))
-    g = sim.scene.models.get("gravity")
-    if g is None or g.kind != "inverse-square":
-        raise ValueError(f"scene {sim.scene.name}: the filter's gravity model needs models.gravity.kind: inverse-square")
-    state = NavState(r_W=y[0:3] - sd[0:3] * n[0:3], v_W=y[3:6] - sd[3:6] * n[3:6], q=q,
-                     b_g=np.zeros(3), b_a=np.zeros(3), P=P0.copy(), t=sim.t)
-    return NavFilter(state, noise, gm=float(g.gm), planet_radius=float(g.radius))
+    q_est = quat_mult(q, small_rotation(-th))
+    state = NavState(r_W=r_W - sd[0:3] * n[0:3], v_W=v_W - sd[3:6] * n[3:6], q=q_est,
+                     b_g=np.zeros(3), b_a=np.zeros(3), P=P0.copy(), t=t)
+    return NavFilter(state, noise, gm=gm, planet_radius=planet_radius)
+
+
+def initial_error_rng(seed: int) -> np.random.Generator:
+    """The generator of the initial estimation error for sensor seed ``seed`` (apart from the sensors' own)."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 1000])))
 
 
 def _apply(filt: NavFilter, m: Measurement, sensors: SensorsConfig, rec: FlightRecord) -> None:
@@ -113,8 +125,7 @@ def fly(scene: Scene, seed: int, duration: float, demand: Demand | None = None,
         alt = None if ap is None else ap.demand_altitude
         demand = Demand(altitude=500.0 if alt is None else alt)
     P0 = initial_covariance(sensors, initial_sigma)
-    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 1000])))
-    filt = make_filter(sensors, sim, P0, rng)
+    filt = make_filter(sensors, sim, P0, initial_error_rng(seed))
     imu = suite.sensors["imu"]
     assert isinstance(imu, IMU)  # SENSORS maps "imu" to it
     rec = FlightRecord()

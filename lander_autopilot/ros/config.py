@@ -53,6 +53,17 @@ def _demand_altitude(v: Any) -> str | None:
     return None
 
 
+#: ``state_source`` value -> (the topic the autopilot reads its states on, the node that publishes it).
+STATE_SOURCES: dict[str, tuple[str, str]] = {
+    "truth": ("/lander/state", "/lander_sim"),
+    "estimate": ("/lander/estimate/state", "/lander_estimator"),
+}
+
+
+def _state_source(v: Any) -> str | None:
+    return None if v in STATE_SOURCES else f"must be one of {', '.join(STATE_SOURCES)}"
+
+
 #: Defaults None are the scene's (filled in at start-up, scene_autopilot); the node declares each
 #: from its spec, and an override given at start-up is checked like a later change.
 PARAMETERS: tuple[ParamSpec, ...] = (
@@ -74,6 +85,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
                                "/lander/state is taken only from the flight's /lander_sim, another publisher is "
                                "refused and counted (lander_ros.strangers); empty: from anyone.", string,
               read_only=True),
+    ParamSpec("state_source", "truth", "The state the controller flies on: truth (the simulator's /lander/state) "
+                                       "or estimate (the estimator node's /lander/estimate/state, the same message "
+                                       "type filled from the navigation filter).", _state_source, read_only=True),
 )
 SPECS: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
 PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)

@@ -6,7 +6,12 @@ node samples the :class:`~lander_sim.sensors.suite.SensorSuite` once at the flig
 step (the truth over the step, :func:`~lander_sim.sensors.truth.truth_after_step`), and publishes each
 :class:`~lander_sim.sensors.base.Measurement` at once, stamped with its time ``t``. A sensor of rate
 ``f`` is due at ``t = j / f``: a flight of duration ``D`` gives ``floor(D f) + 1`` messages per
-sensor (the instants ``0, 1/f, ..., D``) less its dropouts, which give no message. The covariances
+sensor (the instants ``0, 1/f, ..., D``). A sample due that gives no measurement (a dropout: out of
+range, lost lock) is published too, marked "no reading": every variance -1 and every value 0, and
+for the altimeter ``range = +inf`` (REP 117, "no return within ``max_range``"). So which messages a
+step brings is the schedule's alone (:class:`~lander_sim.sensors.suite.SampleSchedule`), and a
+reader that waits for a step's messages (the estimator node) never waits for one that will not
+come. The covariances
 are the measurement's white noise, ``diag(sigma^2)`` (the ``R`` a filter takes); a quantity the
 message carries but the sensor does not measure has the variance -1 on its diagonal (the
 ``sensor_msgs`` convention for "not provided") and the value 0 (identity for a quaternion).
@@ -38,6 +43,7 @@ the beam ``beam_B`` of the scene, in body axes).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -46,7 +52,7 @@ import numpy as np
 from lander_ros.flight_span import SENSOR_KEYS, SENSOR_TOPICS
 from lander_ros.stamps import fill_stamp
 from lander_sim.ros.convert import ros_orientation
-from lander_sim.sensors.base import Measurement
+from lander_sim.sensors.base import Measurement, Truth
 from lander_sim.sensors.suite import SensorsConfig, SensorSuite
 from lander_sim.sensors.truth import truth_after_step, truth_of
 
@@ -131,6 +137,33 @@ def fill_ground_fix(msg: Any, m: Measurement) -> None:
     _diag6(msg.twist.covariance, m.sigma[3:6], None)
 
 
+def fill_no_reading(msg: Any, key: str, t: float, max_range: float = 0.0) -> None:
+    """A due sample of sensor ``key`` at ``t`` [s] with no measurement (module docstring): values 0,
+    variances -1; the altimeter's ``range`` +inf (REP 117). The IMU and the ground fix never drop out."""
+    if key == "star_tracker":
+        fill_stamp(msg.header.stamp, t)
+        p = msg.pose.pose
+        p.position.x = p.position.y = p.position.z = 0.0
+        p.orientation.x = p.orientation.y = p.orientation.z = 0.0
+        p.orientation.w = 1.0
+        _diag6(msg.pose.covariance, None, None)
+    elif key == "altimeter":
+        fill_stamp(msg.header.stamp, t)
+        msg.radiation_type = 0
+        msg.field_of_view = 0.0
+        msg.min_range = 0.0
+        msg.max_range = float(max_range)
+        msg.range = math.inf
+        msg.variance = NOT_MEASURED
+    elif key == "doppler":
+        fill_stamp(msg.header.stamp, t)
+        _xyz(msg.twist.twist.linear, (0.0, 0.0, 0.0))
+        _xyz(msg.twist.twist.angular, (0.0, 0.0, 0.0))
+        _diag6(msg.twist.covariance, None, None)
+    else:
+        raise ValueError(f"sensor {key!r} has no 'no reading' message: it never drops out")
+
+
 def message_types() -> dict[str, Any]:
     """Sensor key -> its ROS message class."""
     from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStamped
@@ -188,18 +221,22 @@ class SensorOutputs:
     def at_start(self, sim: Any, counts: dict[str, int], world: str, body: str) -> None:
         """Sample and publish the instant ``t = 0`` (the flight's first state)."""
         if self.suite is not None:
-            self._publish(self.suite.sample(truth_of(sim)), counts, world, body)
+            self._publish(truth_of(sim), counts, world, body)
 
     def after_step(self, sim: Any, y_before: np.ndarray, dt: float, counts: dict[str, int],
                    world: str, body: str) -> None:
         """Sample the step of ``dt`` [s] that started from ``y_before`` and publish what is due."""
         if self.suite is not None:
-            self._publish(self.suite.sample(truth_after_step(sim, y_before, dt)), counts, world, body)
+            self._publish(truth_after_step(sim, y_before, dt), counts, world, body)
 
-    def _publish(self, ms: list[Measurement], counts: dict[str, int], world: str, body: str) -> None:
-        for m in ms:
-            msg = self._msgs[m.key]
-            if m.key == "imu":
+    def _publish(self, truth: Truth, counts: dict[str, int], world: str, body: str) -> None:
+        assert self.suite is not None
+        for key, m in self.suite.sample_due(truth):
+            msg = self._msgs[key]
+            if m is None:
+                fill_no_reading(msg, key, truth.t, self._max_range)
+                msg.header.frame_id = world if key == "star_tracker" else body
+            elif m.key == "imu":
                 fill_imu(msg, m)
                 msg.header.frame_id = body
             elif m.key == "star_tracker":
@@ -214,5 +251,5 @@ class SensorOutputs:
             else:
                 fill_ground_fix(msg, m)
                 msg.header.frame_id = msg.child_frame_id = world
-            self.publishers[m.key].publish(msg)
-            counts[TOPICS[m.key]] += 1
+            self.publishers[key].publish(msg)
+            counts[TOPICS[key]] += 1

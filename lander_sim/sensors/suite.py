@@ -81,6 +81,34 @@ def generator(seed: int, key: str) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, list(SENSORS).index(key)])))
 
 
+class SampleSchedule:
+    """When each sensor is due (module docstring, "Sampling"): sensor ``key`` of rate ``f`` is due at
+    the first step time ``t >= j / f``, ``j = 0, 1, ...``. The suite samples by it, and a reader of the
+    sensors' messages (the estimator node) knows from it which messages a step time brings."""
+
+    def __init__(self, rates: Mapping[str, float]) -> None:
+        self.rates = dict(rates)
+        self._next = {key: 0.0 for key in self.rates}
+
+    def due(self, t: float) -> list[str]:
+        """The sensors due at step time ``t`` [s], in table order; each is then due next at its
+        first instant ``j / f`` after ``t``."""
+        out = []
+        for key, rate in self.rates.items():
+            period = 1.0 / rate
+            if t < self._next[key] - 1e-9 * period:
+                continue
+            self._next[key] = (math.floor(t * rate + 1e-9) + 1) / rate
+            out.append(key)
+        return out
+
+    def copy(self) -> SampleSchedule:
+        """An independent schedule at the same point."""
+        other = SampleSchedule(self.rates)
+        other._next = dict(self._next)
+        return other
+
+
 class SensorSuite:
     """The sensors of a :class:`SensorsConfig`, sampled at their rates (module docstring)."""
 
@@ -93,25 +121,25 @@ class SensorSuite:
         s = self.config.seed if seed is None else seed
         self.sensors: dict[str, Sensor] = {
             key: SENSORS[key][1](dict(values), generator(s, key)) for key, values in self.config.sections.items()}
-        self._next = {key: 0.0 for key in self.sensors}
+        self.schedule = SampleSchedule({key: float(sensor.rate) for key, sensor in self.sensors.items()})
         self._last: dict[str, float | None] = {key: None for key in self.sensors}
 
     def sample(self, truth: Truth) -> list[Measurement]:
         """One measurement from each sensor due at or before ``truth.t`` (dropouts give none), in table order."""
-        out: list[Measurement] = []
+        return [m for _, m in self.sample_due(truth) if m is not None]
+
+    def sample_due(self, truth: Truth) -> list[tuple[str, Measurement | None]]:
+        """Each sensor due at ``truth.t`` (:class:`SampleSchedule`) with its measurement, None for a
+        dropout (out of range, lost lock), in table order."""
+        out: list[tuple[str, Measurement | None]] = []
         t = truth.t
-        for key, sensor in self.sensors.items():
-            period = 1.0 / sensor.rate
-            if t < self._next[key] - 1e-9 * period:
-                continue
+        for key in self.schedule.due(t):
+            sensor = self.sensors[key]
             last = self._last[key]
             # the first output averages from switch-on at t = 0 (one period when sampled at t = 0)
-            dt = (t if t > 0.0 else period) if last is None else t - last
+            dt = (t if t > 0.0 else 1.0 / sensor.rate) if last is None else t - last
             self._last[key] = t
-            self._next[key] = (math.floor(t * sensor.rate + 1e-9) + 1) / sensor.rate
-            m = sensor.measure(truth, dt)
-            if m is not None:
-                out.append(m)
+            out.append((key, sensor.measure(truth, dt)))
         return out
 
     @property

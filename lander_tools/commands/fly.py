@@ -35,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", metavar="NAME=VALUE", action="append", default=[], dest="sets",
                         help="one controller parameter (e.g. --set kp=0.2, --set 'altitude_poles=[-0.5, -0.6]'); "
                              "repeat for more; on top of --gains or the scene's parameters")
+    parser.add_argument("--estimate", action="store_true",
+                        help="start the estimator node beside the sim (the scene needs sensors with an IMU); the "
+                             "autopilot flies on its estimate, and the bag holds /lander/estimate/* (docs/estimation.md)")
     parser.add_argument("--compose", action="store_true", help="run sim and autopilot in one process (faster)")
     parser.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                         help="sim waits for the autopilot's answer to every state (default: on with an autopilot)")
@@ -88,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         if args.topics:
             plan.topics = tuple(args.topics)
         plan.compose = plan.compose or args.compose
+        plan.estimate = plan.estimate or args.estimate
         if args.lockstep is not None:
             plan.lockstep = args.lockstep
         if args.live:

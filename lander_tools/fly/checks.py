@@ -76,9 +76,12 @@ def check_plan(plan: FlightPlan) -> str | None:
             hint = f"; did you mean {flights.get(close[0], close[0])!r}?" if close else ""
             raise LaunchError(f"unknown scene {s!r}{hint} ('lander scenes' lists them; scripted flights: flights/*.yaml)")
     try:
-        load_scene(s)
+        scene = load_scene(s)
     except ValueError as exc:  # a YAML parser's message spans lines: one line for the user
         raise LaunchError(" ".join(str(exc).split())) from None
+    if plan.estimate and (scene.sensors is None or "imu" not in scene.sensors):
+        raise LaunchError(f"--estimate: scene {s!r} switches no IMU on (sensors.imu), which the estimator "
+                          "propagates on; e.g. landing-sensors has one (docs/estimation.md)")
     controller = resolve_controller(plan)
     names = available_controllers()
     wanted = [controller] if controller is not None else []

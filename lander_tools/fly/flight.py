@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from lander_ros.flight_span import COUNTED_TOPICS, SIM_INPUT_TOPICS
-from lander_tools.fly.plan import FlightPlan, LaunchError
+from lander_tools.fly.plan import ESTIMATE_TOPICS, FlightPlan, LaunchError
 from lander_tools.fly.processes import NodeProcess
 from lander_tools.fly.supervisor import Supervisor, sensor_topics
 from lander_tools.live.bridge import SUBSCRIBED_TOPICS as LIVE_TOPICS
@@ -72,6 +72,8 @@ def flight_nodes(f: LaunchedFlight) -> dict[str, int]:
     nodes = {"lander_sim": 1, "lander_fly": 1}
     if f.controller is not None:
         nodes["autopilot"] = 1
+    if f.plan.estimate:
+        nodes["lander_estimator"] = 1
     return nodes
 
 
@@ -103,8 +105,14 @@ def expected_subscribers(f: LaunchedFlight) -> dict[str, int]:
     if sup.timed:
         need["/clock"] = 1
     if f.controller is not None:
-        need["/lander/state"] += 1
         need["sub:/lander/throttle"] += 1
+    # the autopilot reads the states, or with --estimate the estimator does (its ticks) and every
+    # sensor topic, and the autopilot reads the estimator's
+    if f.controller is not None or f.plan.estimate:
+        need["/lander/state"] += 1
+    if f.plan.estimate:
+        for t in sensor_topics(f.plan.scene):
+            need[t] = need.get(t, 0) + 1
     if sup.recorder is not None:
         for t in sim_outputs(f):
             if sup.recorder.wanted(t):
@@ -125,6 +133,8 @@ def expected_publishers(f: LaunchedFlight) -> dict[str, int]:
         pubs["/lander/events"] += 1
         pubs["/autopilot/status"] = 1
         pubs["/diagnostics"] += 1
+    if f.plan.estimate:
+        pubs.update({t: 1 for t in ESTIMATE_TOPICS})
     return pubs
 
 
@@ -144,7 +154,8 @@ def reference_counts(sup: Supervisor) -> dict[str, tuple[int, bool]]:
       hold too);
     * ``/diagnostics`` with an autopilot: at least the sim's count plus the autopilot's reports this
       launcher received (both publish there; the bag cannot tell whose a message is by its count);
-    * inputs this launcher published (wind, demand): at least what it sent (anyone may add more).
+    * inputs this launcher published (wind, demand): at least what it sent (anyone may add more);
+    * with the estimator (``--estimate``), each of its topics: exactly one estimate per state.
     """
     assert sup.recorder is not None
     ref: dict[str, tuple[int, bool]] = {}
@@ -162,6 +173,10 @@ def reference_counts(sup: Supervisor) -> dict[str, tuple[int, bool]]:
         ref["/diagnostics"] = (ref.get("/diagnostics", (0, False))[0] + sup.received.get("/diagnostics", 0), False)
     for t in ("/lander/wind", "/lander/demand_altitude"):
         ref[t] = (sup.sent.get(t, 0), False)
+    if sup.plan.estimate and sup.flight_end is not None:
+        # the estimator answers every state of the flight with one estimate on each of its topics
+        n = sup.flight_end.counts.get("/lander/state", 0)
+        ref.update({t: (n, True) for t in ESTIMATE_TOPICS})
     return {t: v for t, v in ref.items() if sup.recorder.wanted(t)}
 
 

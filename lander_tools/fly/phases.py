@@ -34,6 +34,7 @@ from lander_tools.fly.flight import (
     strangers_in_graph,
 )
 from lander_tools.fly.plan import (
+    ESTIMATE_TOPICS,
     EXIT_CRASHED,
     EXIT_ERROR,
     EXIT_INCOMPLETE_BAG,
@@ -46,7 +47,7 @@ from lander_tools.fly.plan import (
 )
 from lander_tools.fly.processes import NodeProcess, node_commands, stop_all
 from lander_tools.fly.summary import final_state
-from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call, stall_reason
+from lander_tools.fly.supervisor import MODE_LINES, STARTUP_TIMEOUT, Supervisor, call, sensor_topics, stall_reason
 from lander_tools.fly.timeline import Stop, apply_now, arm, control_period, split_timeline
 from lander_tools.live.bridge import command as live_command
 from lander_tools.metrics_fit import scene_facts
@@ -236,12 +237,15 @@ def wait_until_matched(f: LaunchedFlight) -> None:
                 return False
             res = call(f.executor, sup.cli_autopilot_matched, Trigger.Request(), STARTUP_TIMEOUT, "autopilot matched")
             have_ap = parse_matched(res.message)
-            if have_ap.get("sub:/lander/state", 0) < 1:
-                waiting.append("autopilot <- /lander/state")
+            state_topic = ESTIMATE_STATE if f.plan.estimate else "/lander/state"
+            if have_ap.get(f"sub:{state_topic}", 0) < 1:
+                waiting.append(f"autopilot <- {state_topic}")
             # its first report goes out with its answer to state 1: its writer must have the readers
             readers = 1 + (sup.recorder is not None and sup.recorder.wanted("/diagnostics"))
             if have_ap.get("/diagnostics", 0) < readers:
                 waiting.append("autopilot -> /diagnostics")
+        if f.plan.estimate and not waiting:
+            waiting.extend(_estimator_waits(f))
         return not waiting
 
     deadline = time.monotonic() + STARTUP_TIMEOUT
@@ -249,6 +253,30 @@ def wait_until_matched(f: LaunchedFlight) -> None:
         if time.monotonic() > deadline:
             raise LaunchError(f"nodes not matched within {STARTUP_TIMEOUT} s (still waiting for {', '.join(waiting)})")
         f.spin()
+
+
+#: The estimate the autopilot flies on with ``--estimate``.
+ESTIMATE_STATE = "/lander/estimate/state"
+
+
+def _estimator_waits(f: LaunchedFlight) -> list[str]:
+    """What the estimator node still waits for: its readers must have the sim's state and sensor
+    writers (a volatile reader that has not matched a writer drops what it sends), its writers the
+    autopilot's and the recorder's readers."""
+    sup = f.sup
+    assert sup is not None
+    if not sup.cli_estimator_matched.service_is_ready():
+        return ["the estimator's services"]
+    res = call(f.executor, sup.cli_estimator_matched, Trigger.Request(), STARTUP_TIMEOUT, "estimator matched")
+    have = parse_matched(res.message)
+    waiting = [f"estimator <- {t}" for t in ("/lander/state", *sensor_topics(f.plan.scene))
+               if have.get(f"sub:{t}", 0) < 1]
+    for t in ESTIMATE_TOPICS:
+        readers = (t == ESTIMATE_STATE and f.controller is not None) + (
+            sup.recorder is not None and sup.recorder.wanted(t))
+        if have.get(t, 0) < readers:
+            waiting.append(f"estimator -> {t}")
+    return waiting
 
 
 def _sim_is_ours(f: LaunchedFlight, asked: list[tuple[Any, float]]) -> bool:
@@ -370,6 +398,8 @@ def stop_nodes(f: LaunchedFlight) -> None:
         published = sup.flight_end.counts
         rec = sup.recorder
         wanted = {t: n for t, n in published.items() if rec is not None and rec.wanted(t)}
+        if f.plan.estimate:  # one estimate per state on each of the estimator's topics
+            wanted.update({t: published["/lander/state"] for t in ESTIMATE_TOPICS if rec is not None and rec.wanted(t)})
 
         def delivered() -> bool:
             # In lockstep the autopilot answers the end state too: that answer belongs to the flight.

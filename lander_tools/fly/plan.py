@@ -15,6 +15,9 @@ EXIT_INTERRUPTED = 130
 
 SIM_NODE = "lander_sim"
 AUTOPILOT_NODE = "autopilot"
+ESTIMATOR_NODE = "lander_estimator"
+#: The estimator node's outputs (lander_autopilot.ros.estimator_config.ESTIMATE_TOPICS).
+ESTIMATE_TOPICS = ("/lander/estimate/odometry", "/lander/estimate/state")
 
 ACTION_KINDS = ("demand_altitude", "wind", "controller", "throttle", "stabiliser", "parachute")
 
@@ -71,6 +74,8 @@ class FlightPlan:
     #: machine (lander_tools.fly.domain). It changes no message of the flight.
     domain: int | None = None
     network: bool = False  #: discover over the network (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET), not this machine only
+    #: Start the estimator node beside the sim (``--estimate``); the autopilot then flies on its estimate.
+    estimate: bool = False
 
     def __post_init__(self) -> None:
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
@@ -83,6 +88,8 @@ class FlightPlan:
         bad = [e for e in self.end_on if e not in ("landed", "crashed")]
         if bad:
             raise LaunchError(f"end_on {bad}: allowed are landed, crashed")
+        if self.estimate and self.compose:
+            raise LaunchError("--estimate runs the estimator in its own process: it does not go with --compose")
         if self.params_file is not None and not Path(self.params_file).is_file():
             raise LaunchError(f"--params {self.params_file}: no such file")
 

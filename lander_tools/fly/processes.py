@@ -12,7 +12,7 @@ import yaml
 
 from lander_tools import child
 from lander_tools.fly.checks import read_params_file
-from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, FlightPlan, pilot_mode
+from lander_tools.fly.plan import AUTOPILOT_NODE, ESTIMATOR_NODE, SIM_NODE, FlightPlan, pilot_mode
 
 #: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
 STOP_GRACE = 5.0
@@ -76,7 +76,7 @@ class NodeProcess:
 
 def stop_all(procs: dict[str, NodeProcess]) -> None:
     """Signal every node to stop (autopilot first), then wait for each (see NodeProcess.stop)."""
-    order = sorted(procs.values(), key=lambda p: p.name != "autopilot")
+    order = sorted(procs.values(), key=lambda p: (p.name != "autopilot", p.name != "estimator"))
     interrupted: set[str] = set()
     for p in order:
         if p.alive():
@@ -131,6 +131,8 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
             ap_params["controller_params"] = yaml.safe_dump(
                 dict(plan.controller_params), default_flow_style=True, sort_keys=True
             ).strip()
+        if plan.estimate:
+            ap_params["state_source"] = "estimate"
         ap_params.update(plan.autopilot_params)
         ap_args = ["--params-file", str(_params_yaml(AUTOPILOT_NODE, ap_params, folder))]
     if plan.compose and controller is not None:
@@ -140,4 +142,12 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
         cmds["sim"] = child.command("lander_sim.node", ["--ros-args", "--params-file", str(sim_file)])
         if controller is not None:
             cmds["autopilot"] = child.command("lander_autopilot.node", ["--ros-args", *ap_args])
+    if plan.estimate:
+        # the estimator's initial error is drawn with the sim's seed (-1: the scene's sensors.seed)
+        est_params: dict[str, Any] = {"scene": plan.scene, "seed": int(sim_params.get("seed", -1))}
+        if flight_id:
+            est_params["flight_id"] = flight_id
+        cmds["estimator"] = child.command("lander_autopilot.estimator_node",
+                                          ["--ros-args", "--params-file",
+                                           str(_params_yaml(ESTIMATOR_NODE, est_params, folder))])
     return cmds

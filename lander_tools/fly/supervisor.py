@@ -22,7 +22,7 @@ from lander_ros.flight_span import SENSOR_KEYS, SENSOR_TOPICS, FlightEnd, sim_pa
 from lander_ros.stamps import stamp_to_seconds
 from lander_ros.strangers import STRANGER_KIND
 from lander_sim.scenes import load_scene
-from lander_tools.fly.plan import AUTOPILOT_NODE, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
+from lander_tools.fly.plan import AUTOPILOT_NODE, ESTIMATE_TOPICS, SIM_NODE, Action, FlightPlan, LaunchError, pilot_mode
 from lander_tools.recorder import DEFAULT_TOPICS, Recorder, RecorderConfig
 
 #: Wall seconds allowed for discovery, service answers and the first state.
@@ -128,6 +128,7 @@ class Supervisor:
         self.cli_resume: Any = n.create_client(Trigger, "/lander/resume")
         self.cli_subscribers: Any = n.create_client(Trigger, "/lander/subscribers")
         self.cli_autopilot_matched: Any = n.create_client(Trigger, "/autopilot/matched")
+        self.cli_estimator_matched: Any = n.create_client(Trigger, "/lander_estimator/matched")
         self.cli_stab: Any = n.create_client(SetBool, "/lander/set_stabiliser")
         self.cli_chute: Any = n.create_client(Trigger, "/lander/deploy_parachute")
         #: the sim's parameters: its flight_id says whether it is this flight's (wait_until_matched)
@@ -165,6 +166,8 @@ class Supervisor:
         meta.update(plan.meta)
         # the sensors' topics only when the scene has sensors: the recorder waits for nothing else
         topics = plan.topics or tuple(t for t in DEFAULT_TOPICS if t not in SENSOR_TOPICS or sensor_topics(plan.scene))
+        if plan.estimate and plan.topics is None:  # the estimator's outputs beside the truth
+            topics += ESTIMATE_TOPICS
         return Recorder(self.node, RecorderConfig(plan.record, plan.storage, topics, meta=meta))
 
     @property

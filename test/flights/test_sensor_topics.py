@@ -170,7 +170,8 @@ def test_a_scene_without_sensors_publishes_none(tmp_path: Path) -> None:
 def test_record_whole_flight_records_the_sensor_topics_the_sim_publishes(tmp_path: Path) -> None:
     """`lander record --whole-flight` beside a sim started as `ros2 run` starts it: the sensors the
     sim publishes are waited for, recorded from t = 0 and checked against FLIGHT_ENDED like its other
-    outputs. From 10 km only the IMU and the star tracker are in range (altimeter and Doppler: 4 km)."""
+    outputs. From 10 km only the IMU and the star tracker are in range (altimeter and Doppler: 4 km): the
+    radar sensors' due samples are all "no readings" (the altimeter's range +inf, REP 117; variances -1)."""
     import rosutil
 
     from .flightcheck import REPO, lander
@@ -183,7 +184,9 @@ def test_record_whole_flight_records_the_sensor_topics_the_sim_publishes(tmp_pat
         assert r.returncode == 0, r.stdout + r.stderr + sim.output()
     assert f"complete: the whole flight, t = 0 to {DURATION} s (time-limit)" in r.stdout, r.stdout
     span = check_span(bag, DURATION)
-    for key in ("imu", "star_tracker"):
+    for key in ("imu", "star_tracker", "altimeter", "doppler"):
         topic = f"/lander/sensors/{key}"
         assert span.counts[topic] == span.end.counts[topic] == math.floor(DURATION * RATES[key] + 1e-9) + 1, topic
-    assert span.end.counts["/lander/sensors/altimeter"] == 0 and not _raw(bag).get("/lander/sensors/altimeter")
+    got = _raw(bag)
+    assert all(math.isinf(m[2].range) and m[2].variance == -1.0 for m in got["/lander/sensors/altimeter"])
+    assert all(m[2].twist.covariance[0] == -1.0 for m in got["/lander/sensors/doppler"])

@@ -45,6 +45,22 @@ SAME_BYTES = ("/clock", "/lander/state", "/lander/throttle")
 LAUNCH_TIMEOUT = 120.0  # a flight's start-up and end on two loaded cores; every wait ends at its event
 
 
+@pytest.fixture(scope="module", autouse=True)
+def own_run_files(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """This module's flights keep their run files (what a verb reads for "your flights") in a
+    folder of their own, as one user's session would: flights of other tests or of the machine's
+    user running meanwhile are not this user's flights here."""
+    before = os.environ.get("XDG_RUNTIME_DIR")
+    os.environ["XDG_RUNTIME_DIR"] = str(tmp_path_factory.mktemp("run"))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("XDG_RUNTIME_DIR", None)
+        else:
+            os.environ["XDG_RUNTIME_DIR"] = before
+
+
 @pytest.fixture(scope="module")
 def params_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("params") / "p.yaml"

@@ -91,12 +91,20 @@ const fmt = (v, d) => (v === null || v === undefined || !isFinite(v) ? "-" : (Ma
 const vec = (a, d, k = 1) => (a ? a.map((v) => fmt(k * v, d)).join(" ") : "-");
 
 // A field shows the value in force unless the user is typing in it.
+// Fields the user has typed into and not yet sent: the flight's values do not overwrite them
+// (typing a controller, then its parameters, must not lose the controller typed first).
+const edited = new Set();
+
 function reflect(id, value) {
   const el = $(id);
-  if (value === null || value === undefined || document.activeElement === el) return;
+  if (value === null || value === undefined || document.activeElement === el || edited.has(id)) return;
   const text = String(value);
   if (el.value !== text) el.value = text;
 }
+
+// The fields each button sends: once sent, they show the flight's values again.
+const SENDS = { "demand-set": ["demand-input"], "switch": ["controller-input", "params-input"],
+                "wind-set": ["wind-x", "wind-y", "wind-z"] };
 
 function display(rec) {
   $("simtime").textContent = rec.t.toFixed(2);
@@ -124,6 +132,10 @@ function display(rec) {
 
 function wireControls(client) {
   const num = (id) => Number($(id).value);
+  for (const [button, fields] of Object.entries(SENDS)) {
+    for (const id of fields) $(id).addEventListener("input", () => edited.add(id));
+    $(button).addEventListener("click", () => fields.forEach((id) => edited.delete(id)));
+  }
   $("demand-set").onclick = async () => {
     const value = num("demand-input");
     const params = await client.setParameters([{ name: "demand_altitude", value, type: "float64" }]);

@@ -38,6 +38,14 @@ def _components(v: np.ndarray) -> list[float]:
     return v.tolist() if isinstance(v, np.ndarray) else list(v)
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of two 3-vectors, ``(a1 b2 - a2 b1, a2 b0 - a0 b2, a0 b1 - a1 b0)``: ``np.cross``'s
+    products and differences (so its bits), on scalars, without its axis handling."""
+    a0, a1, a2 = _components(a)
+    b0, b1, b2 = _components(b)
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def quat_mult(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
     """Quaternion product ``q1 x q2`` (eq 10)."""
     s1, x1, y1, z1 = _components(q1)

@@ -125,10 +125,17 @@ def _finite(v: np.ndarray) -> bool:
     return all(map(math.isfinite, v.tolist()))
 
 
+#: Phase -> its upper-case name, filled as phases are met (an enum member's name is a property look-up)
+_PHASE_NAMES: dict[Any, str] = {}
+
+
 def flight_phase(sim: Any) -> str:
     """The simulation's flight phase as an upper-case name (``FLYING``, ``LANDED``, ``CRASHED``, ...)."""
     p = sim.phase
-    return str(getattr(p, "name", getattr(p, "value", p))).upper()
+    name = _PHASE_NAMES.get(p)
+    if name is None:
+        name = _PHASE_NAMES[p] = str(getattr(p, "name", getattr(p, "value", p))).upper()
+    return name
 
 
 def fly_case(

@@ -38,7 +38,6 @@ import numpy as np
 from lander_sim.physics.constants import MARS_RADIUS
 
 
-
 @dataclass
 class Samples:
     """What a flight looked like at its control instants ``t_k = k * period`` (SI, frames named).

@@ -14,7 +14,7 @@ from lander_sim.physics import constants as c
 from lander_sim.physics.rotation import matrix_to_quat, quat_to_matrix
 from lander_sim.physics.state import StateView
 
-from .axis_kernel import thrust_axis_quaternion
+from .axis_kernel import HAVE_NUMBA, thrust_axis_quaternion
 
 #: Floor of an axis's vertical part [-] where its slope is taken (:func:`axis_slope`) and where a
 #: thrust along it is turned into vertical thrust: a tilt past 60 degrees does not grow the slope
@@ -85,7 +85,7 @@ def thrust_axis_attitude(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
     :func:`.axis_kernel.thrust_axis_quaternion` (the same arithmetic as
     :func:`thrust_axis_attitude_numpy`, a numpy call's dispatch saved a dozen times a period).
     """
-    if thrust_axis_quaternion is None:  # pragma: no cover - exercised only where numba is absent
+    if not HAVE_NUMBA:  # pragma: no cover - exercised only where numba is absent
         return thrust_axis_attitude_numpy(q, direction_W)
     s, a, b, c = _floats(q)
     x, y, z = _floats(direction_W)

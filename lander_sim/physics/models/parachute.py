@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from lander_sim.physics import constants as c
-from lander_sim.physics.rotation import cross3
 from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry, needs_air
+from lander_sim.physics.rotation import cross3
 from lander_sim.yaml_file import Reader
 
 

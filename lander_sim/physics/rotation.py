@@ -33,7 +33,7 @@ def axis_angle_to_quat(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.concatenate(([math.cos(h)], (math.sin(h) / n) * a))
 
 
-def components(v: np.ndarray) -> list[float]:
+def components(v: np.ndarray | Sequence[float]) -> list[float]:
     """A vector's components as Python numbers: scalar arithmetic on them is the same IEEE
     arithmetic as on numpy's scalars, several times faster."""
     return v.tolist() if isinstance(v, np.ndarray) else list(v)

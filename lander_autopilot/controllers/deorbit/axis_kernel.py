@@ -38,7 +38,7 @@ except ImportError:  # pragma: no cover - exercised only where numba is absent
             return args[0]
         return lambda f: f
 
-__all__ = ["HAVE_NUMBA", "fused_dot3", "thrust_axis_quaternion"]
+__all__ = ["HAVE_NUMBA", "fused_dot3", "load", "thrust_axis_quaternion"]
 
 
 def _fma_typing(typingctx: Any, a: Any, b: Any, c: Any) -> Any:
@@ -170,3 +170,10 @@ def thrust_axis_quaternion(s: float, a: float, b: float, c: float,
     nq = math.sqrt(_fma(q3, q3, _fma(q2, q2, _fma(q1, q1, q0 * q0))))
     return q0 / nq, q1 / nq, q2 / nq, q3 / nq
 
+
+def load() -> None:
+    """Compile (or load from numba's cache) the kernel now, with the law: its first call costs
+    ~0.3 s even from the cache, more than a control period, so it is not left to the flight's first
+    period."""
+    if HAVE_NUMBA:
+        thrust_axis_quaternion(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1e-12)

@@ -65,6 +65,7 @@ from ..calibration import AirFit, ThrustCalibration
 from ..combined import mix_with_attitude_priority
 from ..landing import LandingController
 from ..params import ParamTable
+from . import axis_kernel
 from .chute import ChuteDecision
 from .descent import DescentToAltitude
 from .estimation import OnlineEstimator
@@ -150,6 +151,7 @@ class DeorbitController(Controller):
         self.estimator = OnlineEstimator(vehicle, self._drag_k)
         self.powered = powered
         self.machine = PhaseMachine()
+        axis_kernel.load()  # the thrust axis's compiled attitude, before the flight's first period
         self.reset()
 
     def _in_band(self, name: str, value: object) -> float:

@@ -9,11 +9,13 @@ rounding only: a few dozen operations of relative error 2^-53 each on unit vecto
 """
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import numpy as np
 import pytest
 
+from lander_autopilot.controllers.base import value_range
 from lander_autopilot.controllers.deorbit import axis_kernel
 from lander_autopilot.controllers.deorbit.geometry import (
     mean_of,
@@ -21,12 +23,12 @@ from lander_autopilot.controllers.deorbit.geometry import (
     thrust_axis_attitude,
     thrust_axis_attitude_numpy,
 )
-from lander_sim.physics.rotation import quat_normalise, quat_to_matrix
+from lander_sim.physics.rotation import quat_mult, quat_mult_components, quat_normalise, quat_to_matrix
 
 RNG = np.random.default_rng(20261204)
 ROUNDING = 1e-14
 
-pytestmark = pytest.mark.skipif(not axis_kernel.HAVE_NUMBA, reason="the kernel needs numba")
+needs_numba = pytest.mark.skipif(not axis_kernel.HAVE_NUMBA, reason="the kernel needs numba")
 
 
 def blas_fuses() -> bool:
@@ -58,6 +60,7 @@ def cases(n: int) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+@needs_numba
 def test_fused_dot3_is_the_exact_fused_chain():
     for _ in range(3000):
         x = RNG.normal(size=3) * 10.0 ** RNG.uniform(-8, 8, size=3)
@@ -65,6 +68,7 @@ def test_fused_dot3_is_the_exact_fused_chain():
         assert axis_kernel.fused_dot3(*x.tolist(), *y.tolist()) == exact_chain(x, y)
 
 
+@needs_numba
 def test_compiled_attitude_is_the_numpy_formulas():
     exact = blas_fuses()
     for q, d in cases(5000):
@@ -75,6 +79,7 @@ def test_compiled_attitude_is_the_numpy_formulas():
             assert np.max(np.abs(a - b)) < ROUNDING, (q, d)
 
 
+@needs_numba
 def test_compiled_attitude_points_body_z_along_the_direction_and_keeps_the_yaw():
     # the property itself: body +z of the result along d (to rounding), and the rotation from q is
     # about an axis perpendicular to both z's (no turn about the thrust axis)
@@ -95,6 +100,7 @@ def test_compiled_attitude_points_body_z_along_the_direction_and_keeps_the_yaw()
             assert abs(quat_to_matrix(q1)[0] @ k - quat_to_matrix(q)[0] @ k) < 1e-12
 
 
+@needs_numba
 def test_parallel_direction_keeps_the_attitude_and_opposite_turns_about_body_x():
     # within PARALLEL_SINE of body z the attitude is kept; of minus body z the fallback turns about
     # body x (the formula's atan2(1, -1): 3/4 of a half turn), the numpy formula's to rounding
@@ -114,3 +120,23 @@ def test_norm3_and_mean_of_are_numpys_to_the_bit():
         u = RNG.uniform(-0.2, 1.2, size=4)
         assert norm3(v) == float(np.linalg.norm(v))
         assert mean_of(u) == float(np.mean(u))
+
+
+def test_value_range_is_numpys_min_and_max_nan_and_infinities_included():
+    # saturate() and the attitude-priority mix read the throttles' range from it
+    specials = [math.nan, math.inf, -math.inf, 0.0, -0.0]
+    for i in range(2000):
+        u = RNG.uniform(-0.5, 1.5, size=4)
+        if i % 4 == 0:
+            u[RNG.integers(4)] = specials[RNG.integers(len(specials))]
+        lo, hi = value_range(u)
+        if np.isnan(u).any():
+            assert math.isnan(lo) and math.isnan(hi)
+        else:
+            assert (lo, hi) == (float(u.min()), float(u.max()))
+
+
+def test_quaternion_product_on_components_is_quat_mult():
+    for _ in range(1000):
+        a, b = RNG.normal(size=4), RNG.normal(size=4)
+        assert np.array_equal(np.array(quat_mult_components(a.tolist(), b.tolist())), quat_mult(a, b))

@@ -23,6 +23,8 @@ Per flight it keeps:
 * the flight's wall time (what a sweep worker spends on it: the flight, the reference and the two
   yardstick solves, ``powered_optimum``, timed), that time less the reference's, and less the
   yardsticks' too (the fuel-optimal solves left: what the rest of the flight costs);
+* the flight's CPU time (``time.process_time``: every thread of the process, which the machine's
+  load stretches far less than the wall time);
 * the flown throttles of every period, to compare the trees' flights (largest difference over the
   powered descent and after it);
 * in the working tree, beside each flown solve, the same programme solved again through cvxpy's
@@ -104,9 +106,10 @@ def probe(spec_path: str, index: int) -> dict[str, Any]:
     DescentMpc.command = timed_command  # type: ignore[method-assign]
     flight.powered_optimum = timed_optimum
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         result = flight.fly_case(spec, ci, index, record=True)
         wall = time.perf_counter() - t0 - alternatives["extra"]  # less the solves beside the flown ones
+        cpu = time.process_time() - c0 - alternatives["extra_cpu"]
     finally:
         DescentMpc.command = command  # type: ignore[method-assign]
         flight.powered_optimum = optimum
@@ -116,7 +119,7 @@ def probe(spec_path: str, index: int) -> dict[str, Any]:
     diag = ctrl.diagnostics()
     traj = result.trajectory
     return {
-        "wall": wall, "reference_time": float(diag.get("mpc_reference_time", math.nan)), "yardstick_time": yardstick[0],
+        "wall": wall, "cpu": cpu, "reference_time": float(diag.get("mpc_reference_time", math.nan)), "yardstick_time": yardstick[0],
         "solve_times": list(mpc.stats.solve_times) if mpc is not None else [], "command_times": command_times,
         "command_cpu": command_cpu,
         "failures": int(mpc.stats.failures) if mpc is not None else -1,
@@ -241,7 +244,7 @@ def summarise(spec: str, tree: str, case: str, flights: Sequence[dict[str, Any]]
             "command_cpu_median_ms": cpu_med, "command_cpu_p99_ms": cpu_p99,
             "failures": int(sum(f["failures"] for f in flights)),
             "fuel_kg": mean("fuel"), "fuel_ratio": worst("fuel_ratio"), "fuel_ratio_balanced": worst("fuel_ratio_balanced"),
-            "wall_s": mean("wall"), "reference_s": mean("reference_time"),
+            "wall_s": mean("wall"), "cpu_s": mean("cpu"), "reference_s": mean("reference_time"),
             "yardstick_s": mean("yardstick_time"),
             "wall_less_reference_s": float(np.mean([f["wall"] - f["reference_time"] for f in flights])),
             "wall_less_guidance_s": float(np.mean([f["wall"] - f["reference_time"] - f["yardstick_time"] for f in flights])),
@@ -256,7 +259,7 @@ def beside(spec: str, label: str, flights: Sequence[dict[str, Any]], key: str) -
             "solve_median_ms": med, "solve_p99_ms": p99, "solve_max_ms": top,
             "command_median_ms": nan, "command_p99_ms": nan, "command_max_ms": nan, "failures": "",
             "command_cpu_median_ms": nan, "command_cpu_p99_ms": nan,
-            "fuel_kg": nan, "fuel_ratio": nan, "fuel_ratio_balanced": nan, "wall_s": nan, "reference_s": nan,
+            "fuel_kg": nan, "fuel_ratio": nan, "fuel_ratio_balanced": nan, "wall_s": nan, "cpu_s": nan, "reference_s": nan,
             "yardstick_s": nan, "wall_less_reference_s": nan, "wall_less_guidance_s": nan, "throttle_gap": nan,
             "plan_gap": max((f["alternatives"][key + "_gap"] for f in flights), default=nan)}
 
@@ -310,10 +313,10 @@ COLUMNS = (("spec", "spec"), ("tree", "tree"), ("case", "case"), ("periods", "pe
            ("command_p99_ms", "command p99 ms"), ("command_max_ms", "max"),
            ("command_cpu_median_ms", "CPU med ms"), ("command_cpu_p99_ms", "p99"), ("failures", "fail"),
            ("fuel_kg", "fuel kg"), ("fuel_ratio", "fuel_ratio"), ("fuel_ratio_balanced", "balanced"),
-           ("throttle_gap", "|dthrottle| vs B"), ("plan_gap", "plan gap"), ("wall_s", "wall s"), ("reference_s", "ref s"),
+           ("throttle_gap", "|dthrottle| vs B"), ("plan_gap", "plan gap"), ("wall_s", "wall s"), ("cpu_s", "CPU s"), ("reference_s", "ref s"),
            ("yardstick_s", "yardst. s"), ("wall_less_reference_s", "wall-ref s"), ("wall_less_guidance_s", "-yardst. s"))
 RATIOS = ("solve_median_ms", "solve_p99_ms", "solve_max_ms", "command_p99_ms", "command_max_ms", "command_cpu_median_ms",
-          "command_cpu_p99_ms", "wall_s", "wall_less_reference_s", "wall_less_guidance_s")
+          "command_cpu_p99_ms", "wall_s", "cpu_s", "wall_less_reference_s", "wall_less_guidance_s")
 
 
 #: Columns printed finer than the table's three figures: the yardsticks to 1e-4 (the acceptance is

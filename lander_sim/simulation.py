@@ -229,7 +229,7 @@ class Simulation:
         n = self.scene.vehicle.n_thrusters
         if t.shape != (n,):
             raise self._reject("throttles", f"throttles must have {n} values (one per thruster), got {t.size}")
-        for i, x in enumerate(t):
+        for i, x in enumerate(t.tolist()):
             if not math.isfinite(x) or x < 0.0 or x > 1.0:
                 raise self._reject("throttles", f"throttles[{i}] must be a finite number in [0, 1], got {float(x)!r}")
         if self.phase is Phase.FLYING and not self._fuel_out:

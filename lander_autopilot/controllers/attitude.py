@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, ClassVar, TypedDict, Unpack
 
 import numpy as np
 
-from lander_sim.physics.rotation import euler_to_quat, quat_conj, quat_mult
+from lander_sim.physics.rotation import components, euler_to_quat, quat_conj, quat_mult_components
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
@@ -167,8 +167,9 @@ class QuaternionAttitudeController(_AttitudeLaw):
             self._qd_key = demand.attitude
         return self._error(self._qd_conj, state, demand.omega_B)
 
-    def _error(self, qd_conj: np.ndarray, state: StateView, omega_d: tuple[float, float, float]) -> np.ndarray:
-        qs, qx, qy, qz = quat_mult(qd_conj, state.q).tolist()
+    def _error(self, qd_conj: np.ndarray | tuple[float, float, float, float], state: StateView,
+               omega_d: tuple[float, float, float]) -> np.ndarray:
+        qs, qx, qy, qz = quat_mult_components(components(qd_conj), components(state.q))
         k = 2.0 if qs >= 0.0 else -2.0
         (wx, wy, wz), (wxd, wyd, wzd) = state.omega_B.tolist(), omega_d
         e = self._e
@@ -178,7 +179,8 @@ class QuaternionAttitudeController(_AttitudeLaw):
     def command_toward(self, q_d: np.ndarray, state: StateView) -> np.ndarray:
         """The law's throttles (unclipped) toward the attitude ``q_d`` (world -> body), at rest: for
         laws that compute their demand as a quaternion (no Euler angles, no singularity)."""
-        return -self._scale(state) * (self.K @ self._error(quat_conj(q_d), state, (0.0, 0.0, 0.0)))
+        s, x, y, z = components(q_d)
+        return -self._scale(state) * (self.K @ self._error((s, -x, -y, -z), state, (0.0, 0.0, 0.0)))  # q_d* (eq 11)
 
     def command(self, t: float, state: StateView, demand: Demand) -> np.ndarray:
         return -self._scale(state) * (self.K @ self.error(state, demand))

@@ -16,7 +16,7 @@ from lander_sim.physics.vehicle import Vehicle
 from ._params import matrix_param
 from .altitude import AltitudeController, IntegralAltitudeController
 from .attitude import EulerAttitudeController, QuaternionAttitudeController
-from .base import Controller, ControlOutput, Demand, saturate
+from .base import Controller, ControlOutput, Demand, saturate, value_range
 from .params import DESIGN_FUEL, Param, ParamTable, positive, weights
 
 
@@ -27,7 +27,7 @@ def mix_with_attitude_priority(collective: float, differential: np.ndarray) -> n
     shrunk to fit; then the collective moves as little as possible into range.
     """
     d = differential
-    lo, hi = float(d.min()), float(d.max())
+    lo, hi = value_range(d)
     if hi - lo > 1.0:
         d = d * (1.0 / (hi - lo))
         lo, hi = lo / (hi - lo), hi / (hi - lo)

@@ -29,7 +29,7 @@ from typing import ClassVar, Protocol, TypedDict, Unpack
 import numpy as np
 
 from lander_sim.physics.constants import GM_MARS, MARS_RADIUS
-from lander_sim.physics.rotation import matrix_to_quat, quat_to_euler, quat_to_matrix
+from lander_sim.physics.rotation import cross3, matrix_to_quat, quat_to_euler, quat_to_matrix
 from lander_sim.physics.state import StateView
 from lander_sim.physics.vehicle import Vehicle
 
@@ -227,7 +227,7 @@ class GroundSpeedController(SumController):
         x_ref = self.heading_axis(state, L)
         b1 = x_ref - float(x_ref @ b3) * b3
         b1 /= float(np.linalg.norm(b1))
-        q_d = matrix_to_quat(np.array([b1, np.cross(b3, b1), b3]))  # rows: body axes in world (world -> body)
+        q_d = matrix_to_quat(np.array([b1, cross3(b3, b1), b3]))  # rows: body axes in world (world -> body)
         self.tilt_demand = math.acos(min(1.0, float(b3 @ L[2])))
         phi, theta, psi = (float(a) for a in quat_to_euler(q_d))
         inner = Demand(altitude=demand.altitude, attitude=(phi, theta, psi))

@@ -120,10 +120,22 @@ def _steps_per_control(spec: SweepSpec, dt: float) -> int:
     return n
 
 
+def _finite(v: np.ndarray) -> bool:
+    """Every component of ``v`` finite (``np.all(np.isfinite(v))`` without its dispatch)."""
+    return all(map(math.isfinite, v.tolist()))
+
+
+#: Phase -> its upper-case name, filled as phases are met (an enum member's name is a property look-up)
+_PHASE_NAMES: dict[Any, str] = {}
+
+
 def flight_phase(sim: Any) -> str:
     """The simulation's flight phase as an upper-case name (``FLYING``, ``LANDED``, ``CRASHED``, ...)."""
     p = sim.phase
-    return str(getattr(p, "name", getattr(p, "value", p))).upper()
+    name = _PHASE_NAMES.get(p)
+    if name is None:
+        name = _PHASE_NAMES[p] = str(getattr(p, "name", getattr(p, "value", p))).upper()
+    return name
 
 
 def fly_case(
@@ -158,7 +170,7 @@ def fly_case(
     for k in range(n_ctrl + 1):
         st = sim.state()
         t = k * period
-        if not (np.all(np.isfinite(st.r_W)) and np.all(np.isfinite(st.omega_B))):
+        if not (_finite(st.r_W) and _finite(st.omega_B)):
             terminal = "diverged"
             break
         demand = demand_after if t >= t_change else demand_before
@@ -330,6 +342,8 @@ def act_on_requests(sim: Any, out: Any) -> None:
     """Do what the autopilot node does with a law's requests (``ControlOutput.requests``): deploy
     the parachute (refused quietly if the scene has none: the node's service call fails the same
     way); a ``landing_unreachable`` report changes nothing in the flight."""
+    if not getattr(out, "requests", ()):
+        return
     from lander_autopilot.controllers.base import REQUEST_DEPLOY_PARACHUTE
     from lander_sim.errors import InputError
 

@@ -35,10 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from lander_sim.physics import rotation
 from lander_sim.physics.constants import MARS_RADIUS
-
-_EZ_B = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -172,7 +169,9 @@ def altitude_and_tilt(r_W: np.ndarray, q: np.ndarray) -> tuple[float, float]:
     rn = math.sqrt(float(r_W @ r_W))
     if rn == 0.0:
         return math.nan, math.nan
-    up = rotation.body_to_world(q, _EZ_B)
+    # body z in world coordinates, R(q)^T e_z: the third row of eq 13 (products by 0 and 1 are exact)
+    s, a, b, c = q.tolist() if isinstance(q, np.ndarray) else q
+    up = np.array([2.0 * (s * b + a * c), 2.0 * (b * c - s * a), s * s - a * a - b * b + c * c])
     return rn - MARS_RADIUS, math.acos(max(-1.0, min(1.0, float(up @ r_W) / rn)))
 
 

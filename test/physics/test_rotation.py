@@ -198,3 +198,21 @@ def test_gimbal_lock_is_reported_and_J_stays_finite_at_the_singularity():
     assert np.all(np.isfinite(rot.euler_rates_matrix(E)))
     assert np.all(np.isfinite(rot.euler_rates_matrix_dot(E, np.array([0.0, 1.0, 0.0]))))
     assert np.linalg.matrix_rank(rot.euler_rates_matrix_inv(E)) == 2
+
+
+def test_cross3_is_np_cross_to_the_bit():
+    # the same three products and differences as np.cross, so equal bits (not a tolerance)
+    for _ in range(2000):
+        a = RNG.normal(size=3) * 10.0 ** RNG.uniform(-6, 6, size=3)
+        b = RNG.normal(size=3) * 10.0 ** RNG.uniform(-6, 6, size=3)
+        assert np.array_equal(rot.cross3(a, b), np.cross(a, b))
+    assert np.array_equal(rot.cross3([1, 2, 3], [4, 5, 6]), np.cross([1, 2, 3], [4, 5, 6]))
+
+
+def test_quat_to_euler_is_matrix_to_euler_of_eq13_to_the_bit():
+    # the entries of eq 13 it reads, computed alone by the same arithmetic: equal bits, at the
+    # singularity too (sin theta under 1e-12 takes the other branch)
+    qs = random_quats(2000) + [rot.quat_normalise(np.array([1.0, 0.0, 0.0, z])) for z in RNG.normal(size=50)]
+    qs += [rot.quat_normalise(np.array([1.0, x, 0.0, 0.3])) for x in 1e-14 * RNG.normal(size=50)]
+    for q in qs:
+        assert np.array_equal(rot.quat_to_euler(q), rot.matrix_to_euler(rot.quat_to_matrix(q)))

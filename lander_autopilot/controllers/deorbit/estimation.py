@@ -25,7 +25,7 @@ from lander_sim.physics.vehicle import Vehicle
 
 from ..calibration import AirFit, ChuteDragFit, ThrustCalibration
 from .descent import DescentToAltitude
-from .geometry import altitude, climb_rate
+from .geometry import altitude, climb_rate, norm3
 
 #: [-] bounds of one period's measured-over-modelled ratio (density, drag) before it is filtered:
 #: one period dominated by a gust or the canopy's opening jerk moves the estimate a bounded step,
@@ -108,13 +108,13 @@ class OnlineEstimator:
         if prev is None or t <= prev[0] or thrust > COAST_THRUST_SHARE * descent.law.T_v:
             return
         h = altitude(state)
-        rn = float(np.linalg.norm(state.r_W))
+        rn = norm3(state.r_W)
         speed2 = float(state.v_W @ state.v_W)
         mass = self.vehicle.mass(state.fuel)
         model = 0.5 * c.SPHERE_DRAG_COEFFICIENT * c.SPHERE_DRAG_AREA * MARS_ATMOSPHERE.density(h) * speed2 / mass
         if model < MIN_MODEL_DRAG:
             return
-        measured = float(np.linalg.norm((state.v_W - prev[1]) / (t - prev[0]) + c.GM_MARS * state.r_W / rn**3)) - thrust / mass
+        measured = norm3((state.v_W - prev[1]) / (t - prev[0]) + c.GM_MARS * state.r_W / rn**3) - thrust / mass
         ratio = clamp_ratio(measured / model)
         descent.law.density_scale += min((t - prev[0]) / FILTER_TIME, 1.0) * (ratio - descent.law.density_scale)
 

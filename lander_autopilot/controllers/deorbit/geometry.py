@@ -14,6 +14,8 @@ from lander_sim.physics import constants as c
 from lander_sim.physics.rotation import matrix_to_quat, quat_to_matrix
 from lander_sim.physics.state import StateView
 
+from .axis_kernel import HAVE_NUMBA, thrust_axis_quaternion
+
 #: Floor of an axis's vertical part [-] where its slope is taken (:func:`axis_slope`) and where a
 #: thrust along it is turned into vertical thrust: a tilt past 60 degrees does not grow the slope
 #: or the thrust asked without bound (the descent never flies it: the tilt limit is 0.7 rad).
@@ -78,8 +80,25 @@ def thrust_axis_attitude(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
     """The attitude (world -> body quaternion) nearest ``q`` with body +z along ``direction_W``.
 
     The smallest world-frame rotation taking the current body z to the direction, applied to every
-    body axis: the yaw about the thrust axis is kept, so the law spends nothing on it.
+    body axis: the yaw about the thrust axis is kept, so the law spends nothing on it. Rodrigues'
+    rotation about ``k = z x d / |z x d|`` by ``atan2(|z x d|, z . d)``; computed by the compiled
+    :func:`.axis_kernel.thrust_axis_quaternion` (the same arithmetic as
+    :func:`thrust_axis_attitude_numpy`, a numpy call's dispatch saved a dozen times a period).
     """
+    if not HAVE_NUMBA:  # pragma: no cover - exercised only where numba is absent
+        return thrust_axis_attitude_numpy(q, direction_W)
+    s, a, b, c = _floats(q)
+    x, y, z = _floats(direction_W)
+    return np.array(thrust_axis_quaternion(s, a, b, c, x, y, z, PARALLEL_SINE))
+
+
+def _floats(v: np.ndarray) -> list[float]:
+    return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
+
+
+def thrust_axis_attitude_numpy(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
+    """:func:`thrust_axis_attitude` in numpy: the formula the compiled kernel follows, and its
+    stand-in without numba."""
     R = quat_to_matrix(q)  # rows: body axes in world coordinates
     z = R[2]
     d = np.asarray(direction_W, float) / np.linalg.norm(direction_W)
@@ -98,9 +117,20 @@ def thrust_axis_attitude(q: np.ndarray, direction_W: np.ndarray) -> np.ndarray:
 
 
 
+def norm3(v: np.ndarray) -> float:
+    """``|v| = sqrt(v . v)`` [v's unit] of a float 3-vector: ``np.linalg.norm``'s own arithmetic (the
+    same BLAS dot product), without its dispatch."""
+    return math.sqrt(v.dot(v))
+
+
+def mean_of(u: np.ndarray) -> float:
+    """The mean of a float array, as ``np.mean`` sums it (the same reduction, without its dispatch)."""
+    return float(u.sum()) / u.size
+
+
 def altitude(state: StateView) -> float:
     """``|r_W| - R_mars`` [m]."""
-    return float(np.linalg.norm(state.r_W)) - c.MARS_RADIUS
+    return norm3(state.r_W) - c.MARS_RADIUS
 
 
 def climb_rate(state: StateView) -> float:

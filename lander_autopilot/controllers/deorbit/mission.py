@@ -65,10 +65,11 @@ from ..calibration import AirFit, ThrustCalibration
 from ..combined import mix_with_attitude_priority
 from ..landing import LandingController
 from ..params import ParamTable
+from . import axis_kernel
 from .chute import ChuteDecision
 from .descent import DescentToAltitude
 from .estimation import OnlineEstimator
-from .geometry import MIN_SPEED, altitude, climb_rate, thrust_axis_attitude
+from .geometry import MIN_SPEED, altitude, climb_rate, mean_of, norm3, thrust_axis_attitude
 from .hover import HoverCapture
 from .mpc import ATTITUDE_LAG, MpcDescent
 from .params import DEORBIT_MPC_PARAMS, DEORBIT_PARAMS, SCHEDULED_ROWS
@@ -150,6 +151,7 @@ class DeorbitController(Controller):
         self.estimator = OnlineEstimator(vehicle, self._drag_k)
         self.powered = powered
         self.machine = PhaseMachine()
+        axis_kernel.load()  # the thrust axis's compiled attitude, before the flight's first period
         self.reset()
 
     def _in_band(self, name: str, value: object) -> float:
@@ -216,9 +218,11 @@ class DeorbitController(Controller):
 
     def _fly_phases(self, t: float, state: StateView, demand: Demand) -> ControlOutput:
         burning = self.phase is Phase.BURN  # before command(): the burn's last period ends inside it
-        out = saturate(self.command(t, state, demand))
+        # from entry on command() is zeros and changes nothing, and its output is read in orbit only
+        out = saturate(self.command(t, state, demand)) if self.phase in ORBIT_PHASES else None
         if burning or self.phase is Phase.BURN:
-            self.estimator.learn_thrust(t, state, self.descent.law.T_v * float(np.mean(out.throttles)) if self.phase is Phase.BURN else 0.0)
+            assert out is not None
+            self.estimator.learn_thrust(t, state, self.descent.law.T_v * mean_of(out.throttles) if self.phase is Phase.BURN else 0.0)
         if self.phase in DESCENT_PHASES:
             self.descent.floor = demand.altitude
             if (self.phase is Phase.ENTRY and self.chute_first and not self._chute_open
@@ -278,6 +282,7 @@ class DeorbitController(Controller):
         elif self.phase is Phase.LANDING:
             inner = self.landing.update(t, state, demand)
         else:
+            assert out is not None  # the orbit's phases
             return ControlOutput(out.throttles, out.saturated, out.unclipped, mode=self.phase.value)
         return ControlOutput(inner.throttles, inner.saturated, inner.unclipped, mode=self.phase.value,
                              requests=inner.requests)
@@ -295,10 +300,10 @@ class DeorbitController(Controller):
         (ground-speed mixing, failure watch: ~0.4 ms, 18,000 times from scenario 0's orbit) is not run
         until the chute is out; it then starts from the chute's instant."""
         self.estimator.learn_density(t, state, self.descent)
-        request = self.descent.law.chute_request(altitude(state), climb_rate(state), float(np.linalg.norm(state.v_W)))
+        request = self.descent.law.chute_request(altitude(state), climb_rate(state), norm3(state.v_W))
         if request is None:
             u = saturate(self._entry_command(t, state))
-            self.estimator.entry_thrust(self.descent.law.T_v * float(np.mean(u.throttles)))
+            self.estimator.entry_thrust(self.descent.law.T_v * mean_of(u.throttles))
             return ControlOutput(u.throttles, u.saturated, u.unclipped, mode=self.phase.value)
         self._open_chute(t)
         u = saturate(self._retrograde(state, 0.0))
@@ -314,7 +319,7 @@ class DeorbitController(Controller):
         self.estimator.learn_drag(t, state, self.descent)
         coast = saturate(self._retrograde(state, 0.0))
         # the thrust this period flies [N, world], for the next period's measured drag
-        self.estimator.chute_thrust(self.descent.law.T_v * self.thrust_calibration.scale * float(np.mean(coast.throttles))
+        self.estimator.chute_thrust(self.descent.law.T_v * self.thrust_calibration.scale * mean_of(coast.throttles)
                                     * quat_to_matrix(state.q)[2])
         return coast
 
@@ -322,13 +327,13 @@ class DeorbitController(Controller):
         """Before the chute: thrust axis retrograde; brake (``burn_throttle``) only while the entry's
         prediction says the chute could not open within its margin (:meth:`.chute.ChuteDecision.entry_brakes`)."""
         brake = self.chute.entry_brakes(t, state)
-        retro = -state.v_W / float(np.linalg.norm(state.v_W))
+        retro = -state.v_W / norm3(state.v_W)
         d = self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state)
         return mix_with_attitude_priority(self.burn_throttle if brake else 0.0, d)
 
     def _retrograde(self, state: StateView, collective: float) -> np.ndarray:
         """Throttles holding the thrust axis against the velocity (attitude priority) [unclipped]."""
-        retro = -state.v_W / max(float(np.linalg.norm(state.v_W)), MIN_SPEED)
+        retro = -state.v_W / max(norm3(state.v_W), MIN_SPEED)
         return mix_with_attitude_priority(collective, self.attitude.command_toward(thrust_axis_attitude(state.q, retro), state))
 
     def start_in(self, phase: Phase, chute_open: bool = False) -> None:

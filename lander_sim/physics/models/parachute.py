@@ -10,6 +10,7 @@ import numpy as np
 
 from lander_sim.physics import constants as c
 from lander_sim.physics.models.base import BuildContext, Built, EvalContext, ModelEntry, needs_air
+from lander_sim.physics.rotation import cross3
 from lander_sim.yaml_file import Reader
 
 
@@ -59,7 +60,7 @@ class Parachute:
 
     def _force_B(self, ctx: EvalContext) -> np.ndarray:
         y = ctx.y
-        W = ctx.R @ (ctx.inputs.wind_W - y[3:6]) - np.cross(y[10:13], self.attach_B)
+        W = ctx.R @ (ctx.inputs.wind_W - y[3:6]) - cross3(y[10:13], self.attach_B)
         F_B: np.ndarray = (self._k * ctx.rho * math.sqrt(float(W @ W))) * W
         return F_B
 
@@ -69,7 +70,7 @@ class Parachute:
             return
         F = self._force_B(ctx)
         force_B += F
-        torque_B += np.cross(self.attach_B, F)
+        torque_B += cross3(self.attach_B, F)
 
     def drag_magnitude(self, ctx: EvalContext) -> float:
         """Drag the canopy would pull with in this context [N] (whether deployed or not)."""

@@ -51,7 +51,6 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import warnings
 
-    from lander_tools import estimate_analysis as ea
     from lander_tools.analysis import Flight, metrics, table, to_json
     from lander_tools.bagio import BagError, BagWarning, read_bag
 

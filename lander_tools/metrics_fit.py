@@ -22,18 +22,24 @@ place those rules live:
 * **gimbal-lock events** are the simulator's ``GIMBAL_LOCK`` events, one each time the integrated
   ZXZ angles enter ``|sin theta| < gimbal_threshold`` (reference 1, section 3.2). Only a scene
   integrated in Euler angles has them: in quaternion mode the angles are only derived for display,
-  and the flag the state carries near ``theta = 0`` is no event.
+  and the flag the state carries near ``theta = 0`` is no event;
+* **the estimate's figures** (errors with their 3-sigma bounds, NEES: :mod:`lander_tools.estimate_analysis`)
+  apply to a bag that recorded the estimator node's ``/lander/estimate/odometry`` beside the truth
+  (a flight flown with ``lander fly --estimate``); **NIS** applies to no bag: it needs each update's
+  innovation and its covariance, which no topic carries.
 """
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Mapping
+from collections.abc import Container, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 #: ``FlightEvent.GIMBAL_LOCK`` (lander_interfaces/msg/FlightEvent.msg), as a plain int.
 GIMBAL_LOCK_KIND = 2
+#: The estimator node's estimate with its covariance (``nav_msgs/Odometry``, docs/estimation.md).
+ESTIMATE_TOPIC = "/lander/estimate/odometry"
 
 
 @dataclass(frozen=True)
@@ -88,6 +94,12 @@ def fuel_applies(n_thrusters: int) -> bool:
     """Fuel is a figure of a vehicle with thrusters (``n_thrusters``: the scene's, or the length
     of the state's ``throttles``, which has one entry per thruster)."""
     return n_thrusters > 0
+
+
+def estimate_applies(topics: Container[str]) -> bool:
+    """The estimate's figures apply: ``topics`` (a :class:`~lander_tools.bagio.Bag`, or names of
+    the topics with messages) holds :data:`ESTIMATE_TOPIC`."""
+    return ESTIMATE_TOPIC in topics
 
 
 def gimbal_lock_count(event_kinds: Iterable[int]) -> int:

@@ -26,8 +26,8 @@ DOMAIN_MIN, DOMAIN_MAX = 1, 101
 #: process or in child processes. A new ROS test file belongs here.
 ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability/", "sim_node/",
              "sweep/test_through_ros.py", "tools/test_analyse_command.py", "tools/test_deorbit_params_example.py",
-             "tools/test_flights_apart.py", "tools/test_headline_flight.py", "tools/test_launch_file.py",
-             "tools/test_record_command.py", "test_cli.py")
+             "tools/test_estimate_flight.py", "tools/test_flights_apart.py", "tools/test_headline_flight.py",
+             "tools/test_launch_file.py", "tools/test_record_command.py", "test_cli.py")
 
 #: The ROS test files that keep Fast DDS's default transports (shared memory beside UDP), as a
 #: user's flight does. Under pytest-xdist (``--dist loadgroup``; conftest sets the groups) they run

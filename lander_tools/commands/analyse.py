@@ -12,6 +12,14 @@ from its handover state (:mod:`lander_tools.reference_overlay`): printed after t
 without a powered descent gets one line on stderr and ``null``, exit 0, as a metric that does not
 apply; a reference that cannot be built (no scene in the bag's metadata and no ``--scene``, no
 demand, no feasible descent) is a one-line error, exit 2.
+A bag that holds the estimate (a flight flown with ``lander fly --estimate``) gets the estimate's
+figures after the table (:mod:`lander_tools.estimate_analysis`): per state component the error
+against the truth with percentiles and the fraction inside the filter's 3 sigma, the NEES of
+position, velocity, attitude and pose against their chi-square 95 % intervals, NIS as n/a (no
+innovations recorded); as ``"estimate"`` in the JSON (one entry per bag, ``"applies": false`` with
+the reason where the bag has no estimate); with ``--out``, ``<prefix>-estimate.png`` (error and
++-3 sigma per component) and ``<prefix>-nees.png`` (``-<n>`` before ``.png`` for the n-th of several
+bags). Bags without an estimate print nothing of it in the table.
 Heavy imports (numpy, matplotlib, rosbags, cvxpy) happen in :func:`run`.
 """
 
@@ -54,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"lander analyse: {problem}", file=sys.stderr)
         return 2
     flights: list[Flight] = []
+    estimates: list[tuple[Any, str]] = []  # per bag: (EstimateReport or None, why not)
     for path in args.bags:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", BagWarning)
@@ -61,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
                 bag = read_bag(path)
                 flights.append(Flight.from_bag(bag, name=_name(path, [f.name for f in flights])))
                 _print_span(path, bag)
+                estimates.append(_estimate(path, bag, flights[-1]))
             except BagError as exc:
                 print(f"lander analyse: {exc}", file=sys.stderr)
                 return 2
@@ -68,16 +78,23 @@ def run(args: argparse.Namespace) -> int:
             print(f"lander analyse: warning: {w.message}", file=sys.stderr)
     all_metrics = [metrics(f, band_min=args.band) for f in flights]
     rc, overlays = (_references(flights, args.bags, args.scene) if args.reference else (0, []))
-    extra = {"reference": [None if o is None else o.summary() for o in overlays]} if args.reference else None
+    extra: dict[str, Any] = {"reference": [None if o is None else o.summary() for o in overlays]} if args.reference else {}
+    extra["estimate"] = [rep.summary() if rep is not None else {"applies": False, "name": f.name, "why": why}
+                         for f, (rep, why) in zip(flights, estimates)]
     print(to_json(all_metrics, extra) if args.json else table(all_metrics))
     if not args.json:
         for o in overlays:
             if o is not None:
                 print()
                 print("\n".join(o.lines()))
+        if any(rep is not None for rep, _ in estimates):
+            for f, (rep, why) in zip(flights, estimates):
+                print()
+                print("\n".join(rep.lines()) if rep is not None else f"estimate of {f.name}: n/a: {why}")
     if args.out is not None:
         try:
             _write_figures(flights, overlays, args.out, args.prefix)
+            _write_estimate_figures([rep for rep, _ in estimates], args.out, args.prefix)
         except OSError as exc:  # the checks above cannot see everything (a read-only mount, a full disk)
             print(f"lander analyse: --out {args.out}: cannot write the plots: {exc.strerror or exc}", file=sys.stderr)
             return 2
@@ -97,6 +114,33 @@ def _write_figures(flights: list[Any], overlays: list[Any], out: Path, prefix: s
         if o is not None:
             name = f"{prefix}-reference.png" if len(flights) == 1 else f"{prefix}-reference-{k + 1}.png"
             print(f"wrote {write_figure(f, o, out / name)}", file=sys.stderr)
+
+
+def _estimate(path: Path, bag: Any, flight: Any) -> tuple[Any, str]:
+    """The flight's :class:`~lander_tools.estimate_analysis.EstimateReport` and ``""``, or ``None``
+    and why not; an estimate topic that cannot be read is one line on stderr, and the table goes on."""
+    import sys
+
+    from lander_tools import estimate_analysis as ea
+
+    try:
+        return ea.from_bag(bag, flight)
+    except (KeyError, ValueError) as exc:
+        why = f"{ea.ODOMETRY_TOPIC} cannot be read as nav_msgs/Odometry ({type(exc).__name__}: {exc})"
+        print(f"lander analyse: warning: {path}: {why}", file=sys.stderr)
+        return None, why
+
+
+def _write_estimate_figures(reports: list[Any], out: Path, prefix: str) -> None:
+    import sys
+
+    from lander_tools.estimate_analysis import write_figures
+
+    for k, rep in enumerate(reports):
+        if rep is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            for p in write_figures(rep, out, prefix, "" if len(reports) == 1 else f"-{k + 1}"):
+                print(f"wrote {p}", file=sys.stderr)
 
 
 def _references(flights: list[Any], paths: list[Path], scene: str | None) -> tuple[int, list[Any]]:

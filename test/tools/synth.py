@@ -12,6 +12,21 @@ from lander_tools.bagio import lander_typestore
 STATE = "lander_interfaces/msg/LanderState"
 STATUS = "lander_interfaces/msg/AutopilotStatus"
 EVENT = "lander_interfaces/msg/FlightEvent"
+ODOM = "nav_msgs/msg/Odometry"
+
+
+def _odometry(T, stamp, est: dict[str, np.ndarray], i: int):
+    """Row ``i`` of ``est`` as the estimator node's Odometry (pose in mars, twist in base_link)."""
+    r, q, v = est["r_W"][i], est["q"][i], est["v_B"][i]
+    V3, H = T["geometry_msgs/msg/Vector3"], T["std_msgs/msg/Header"]
+    pose = T["geometry_msgs/msg/PoseWithCovariance"](
+        pose=T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=r[0], y=r[1], z=r[2]),
+                                         orientation=T["geometry_msgs/msg/Quaternion"](x=q[1], y=q[2], z=q[3], w=q[0])),
+        covariance=np.asarray(est["pose_cov"][i], dtype=float))
+    twist = T["geometry_msgs/msg/TwistWithCovariance"](
+        twist=T["geometry_msgs/msg/Twist"](linear=V3(x=v[0], y=v[1], z=v[2]), angular=V3(x=0.0, y=0.0, z=0.0)),
+        covariance=np.asarray(est["twist_cov"][i], dtype=float))
+    return T[ODOM](header=H(stamp=stamp, frame_id="mars"), child_frame_id="base_link", pose=pose, twist=twist)
 
 
 def write_flight_bag(
@@ -34,6 +49,7 @@ def write_flight_bag(
     status_mode: np.ndarray | None = None,
     status_saturated: np.ndarray | None = None,
     events: list[tuple[float, int]] | None = None,
+    estimate: dict[str, np.ndarray] | None = None,
 ) -> None:
     """A bag with /clock, /lander/state (upright lander on the -y axis, as scene 'hover') and
     /lander/demand_altitude; bag time = sim time + 1 s (so the /clock mapping is exercised).
@@ -41,7 +57,11 @@ def write_flight_bag(
     ``phase`` (one per state, default 0: flying) is the state's phase field (1 landed, 2 crashed);
     ``euler`` (N, 3), ``gimbal_lock`` and ``stabiliser`` (N,) the state's fields of those names;
     ``status_mode`` and ``status_saturated`` (N,) the status's (with ``status_demand``); ``events``
-    ``(t, kind)`` pairs written to /lander/events (``[]`` records the topic with no event)."""
+    ``(t, kind)`` pairs written to /lander/events (``[]`` records the topic with no event).
+    ``estimate``: /lander/estimate/odometry at the states' stamps, as the estimator node fills it
+    (docs/estimation.md), from arrays of one row per state: ``r_W`` (N, 3), ``q`` (N, 4, core order),
+    ``v_B`` (N, 3, body axes), ``pose_cov`` and ``twist_cov`` (N, 36); a state whose ``r_W`` row is
+    NaN gets no estimate."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     ts = lander_typestore()
@@ -65,6 +85,7 @@ def write_flight_bag(
         c_state = w.add_connection("/lander/state", STATE, typestore=ts)
         c_dem = w.add_connection("/lander/demand_altitude", "std_msgs/msg/Float64", typestore=ts)
         c_status = w.add_connection("/autopilot/status", STATUS, typestore=ts) if status_demand is not None else None
+        c_odom = w.add_connection("/lander/estimate/odometry", ODOM, typestore=ts) if estimate is not None else None
         if events is not None:
             c_ev = w.add_connection("/lander/events", EVENT, typestore=ts)
             for te, kind in events:
@@ -99,6 +120,8 @@ def write_flight_bag(
                 stabiliser_on=False if stabiliser is None else bool(stabiliser[i]),
             )
             w.write(c_state, tb, ts.serialize_cdr(msg, STATE))
+            if c_odom is not None and np.all(np.isfinite(estimate["r_W"][i])):
+                w.write(c_odom, tb, ts.serialize_cdr(_odometry(T, stamp(t[i]), estimate, i), ODOM))
             if c_status is not None:
                 st = T[STATUS](
                     header=T["std_msgs/msg/Header"](stamp=stamp(t[i]), frame_id=""),

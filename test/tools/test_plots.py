@@ -3,7 +3,7 @@ axes of every axes labelled, no legend over the data, one colour per flight in e
 trajectory's axes on one scale, and no matplotlib warning while drawing (docs/flying.md: what `lander analyse` draws).
 
 The Figure objects are inspected, not pixels: ``lander analyse``'s kinds
-(:func:`lander_tools.analysis_plots.figures`), the rotor's z-axis track, the sweep plots and the
+(:func:`lander_tools.analysis_plots.figures`, the estimate's :mod:`lander_tools.estimate_analysis`), the rotor's z-axis track, the sweep plots and the
 benchmarks' plots (their ``plot(data)`` functions, fed data in the shape of their JSON).
 """
 from __future__ import annotations
@@ -129,6 +129,31 @@ def test_every_analyse_plot_kind_reads_well(case: str, tmp_path: Path) -> None:
         warnings.simplefilter("error")
         paths = write_plots(flights, tmp_path)
     assert sorted(p.name for p in paths) == sorted(f"flight-{k}.png" for k in figs)
+
+
+def test_the_estimate_figures_read_well_and_draw_the_3_sigma_band() -> None:
+    from lander_tools import estimate_analysis as ea
+
+    n = 200
+    t = np.arange(n) * 0.1
+    rng = np.random.default_rng(1)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    r_W = np.column_stack([0.0 * t, -(MARS_RADIUS + 1000.0 - 3.0 * t), 0.0 * t])
+    v_W = np.tile([0.0, 3.0, 0.0], (n, 1))
+    sig = np.array([10.0, 10.0, 10.0, 1e-3, 1e-3, 1e-3])
+    track = ea.EstimateTrack(t_ns=np.rint(t * 1e9).astype(np.int64), r_W=r_W + rng.normal(size=(n, 3)) * 10.0,
+                             v_W=v_W + rng.normal(size=(n, 3)) * 0.5, q=q,
+                             P_pose=np.tile(np.diag(sig**2), (n, 1, 1)), P_v=np.tile(np.eye(3) * 0.25, (n, 1, 1)))
+    rep = ea.report("est", t, r_W, v_W, q, track)
+    assert rep is not None
+    for make in (ea.figure, ea.nees_figure):
+        fig = _drawn(lambda make=make: make(rep))
+        _read_as_a_student(fig)
+        _close(fig)
+    fig = ea.figure(rep)
+    band = fig.get_axes()[0].collections[0].get_paths()[0].vertices[:, 1]  # r_x: +-3 sigma = +-30 m
+    assert band.max() == pytest.approx(30.0) and band.min() == pytest.approx(-30.0)
+    _close(fig)
 
 
 def test_trajectory_has_one_scale_on_every_axis_so_orbit_noise_stays_flat() -> None:

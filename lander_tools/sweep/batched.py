@@ -82,6 +82,8 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
     if spec.end.hover_hold > 0:
         return "end.hover_hold: the compiled loop has no hover-hold stop"
     for ci, choice in enumerate(spec.controllers):
+        if choice.navigation != "truth":
+            return f"controller {choice.label!r} flies on the estimate (the compiled loop has no navigation filter)"
         if compiled_form(case_controller(spec, ci, scene.vehicle)) is None:
             return f"controller {choice.label!r} has no compiled form"
     return None

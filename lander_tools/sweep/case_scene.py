@@ -17,6 +17,8 @@ the simulator node (:mod:`lander_tools.sweep.ros_path`). What the case changes:
   tau: end.gust_time_constant, seed}`` with the seed drawn from the flight's own stream
   (:func:`gust_seed`), so the gusts are a function of ``(master seed, index)`` alone.
 * ``models.atmosphere.surface_density`` = the scene's times ``1 + density_error``.
+* ``sensors.seed`` (a scene with sensors) = :func:`sensor_seed`, from the flight's own stream: each
+  flight's sensor noise, switch-on biases and initial estimation error are its own.
 * thruster directions tilted by ``thruster_cant`` (:func:`canted_directions`): **no scene key
   carries them yet**, so :func:`flown_scene` applies them to the parsed scene's vehicle and
   :func:`write_case_scene` (the through-ROS path) refuses such a case (:class:`NotRepresentable`).
@@ -36,7 +38,7 @@ import yaml
 
 from lander_sim.physics import rotation
 from lander_sim.physics.state import ATT, EULER, FUEL, OMEGA_B, R_W, V_W
-from lander_tools.sweep.dispersion import FlightCase, gust_stream
+from lander_tools.sweep.dispersion import FlightCase, gust_stream, stream
 from lander_tools.sweep.spec import SweepSpec
 
 # Per-process caches of the nominal scene and its raw YAML (identical for every flight of a sweep).
@@ -82,6 +84,13 @@ def scene_data(spec: SweepSpec) -> dict[str, Any]:
 def gust_seed(case: FlightCase) -> int:
     """Seed of the flight's gust process, in [0, 2**63) (a ROS int64 parameter can carry it)."""
     return int(gust_stream(case).integers(0, 2**63 - 1))
+
+
+def sensor_seed(case: FlightCase) -> int:
+    """Seed of the flight's sensors (``sensors.seed``: every noise and switch-on bias draw, and the
+    filter's initial error), in [0, 2**63), from its own stream: the sensors' errors differ from
+    flight to flight and never shift the case's other draws."""
+    return int(stream(case.seed, case.index, "sensors").integers(0, 2**63 - 1))
 
 
 def _rotate(x: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
@@ -202,6 +211,8 @@ def case_scene_data(spec: SweepSpec, case: FlightCase) -> dict[str, Any]:
     if case.wind_gust:
         wind["gust"] = {"sigma": case.wind_gust, "tau": spec.end.gust_time_constant, "seed": gust_seed(case)}
     data["wind"] = wind
+    if isinstance(data.get("sensors"), dict):
+        data["sensors"] = {**data["sensors"], "seed": sensor_seed(case)}
     if case.density_error:
         atmosphere = scene.models.get("atmosphere")
         if atmosphere is None:

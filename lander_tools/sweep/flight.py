@@ -82,6 +82,25 @@ def case_controller(spec: SweepSpec, ci: int, vehicle: Any) -> Any:
     return ctrl
 
 
+def navigator(spec: SweepSpec, ci: int, sim: Any) -> Any:
+    """What controller ``ci`` flies on in ``sim``: None for the truth, or for ``navigation: estimate``
+    the scene's sensors and the navigation filter riding along (:class:`~lander_autopilot.estimation.
+    onboard.Onboard`, seeded by the flight's ``sensors.seed``). A scene without the sensors the
+    filter needs is a :class:`FlightSetupError`."""
+    if spec.controllers[ci].navigation != "estimate":
+        return None
+    from lander_autopilot.estimation.onboard import Onboard
+
+    sensors = sim.scene.sensors
+    if sensors is None or "imu" not in sensors.sections:
+        raise FlightSetupError(f"controllers[{ci}].navigation: estimate: scene {spec.scene!r} has no sensors.imu "
+                               "(fly on the estimate from a scene with sensors, e.g. landing-hover-sensors)")
+    try:
+        return Onboard(sim, sensors)
+    except ValueError as exc:
+        raise FlightSetupError(f"controllers[{ci}].navigation: estimate: {exc}") from exc
+
+
 def base_demand_altitude(scene: Any) -> float:
     """Demand before any step [m]: the scene's ``autopilot.demand_altitude`` if set, else the
     autopilot's default :class:`Demand` altitude (scenario 7 starts 50 m above its 500 m hover)."""
@@ -149,6 +168,7 @@ def fly_case(
     case = draw_case(spec, index, scene0.vehicle.n_thrusters)
     ctrl = case_controller(spec, controller_index, scene0.vehicle)
     sim = Simulation(flown_scene(spec, case))
+    onboard = navigator(spec, controller_index, sim)
     n_sub, period = control_period(spec, sim.dt)
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
     h_before, h_after, t_change = demand_schedule(spec, scene0, case)
@@ -190,7 +210,7 @@ def fly_case(
         if k == n_ctrl or (hold is not None and hold.update(t, errs[-1], speeds[-1])):
             break
         c0 = time.process_time()
-        out = ctrl.update(t, st, demand)
+        out = ctrl.update(t, st if onboard is None else onboard.state(), demand)
         compute += time.process_time() - c0
         if out.mode is not None and out.mode not in mode_fuel:
             mode_fuel[out.mode] = float(st.fuel)
@@ -200,7 +220,10 @@ def fly_case(
         sat_steps += bool(out.saturated)
         sim.set_throttles(out.throttles)
         v_before = st.v_W
-        sim.step(n_sub)
+        if onboard is None:
+            sim.step(n_sub)
+        else:
+            onboard.step(n_sub)  # one step at a time, the sensors sampling each
         if record:
             demands.append(demand.altitude)
             alts.append(h)
@@ -392,4 +415,8 @@ def preflight(spec: SweepSpec) -> None:
     flown_scene(spec, draw_case(spec, 0, scene.vehicle.n_thrusters))
     for ci in range(len(spec.controllers)):
         case_controller(spec, ci, scene.vehicle)
+        from lander_sim.simulation import Simulation
+
+        if spec.controllers[ci].navigation == "estimate":
+            navigator(spec, ci, Simulation(scene))
     _steps_per_control(spec, scene.dt)

@@ -17,6 +17,12 @@ Every error is a :class:`SweepSpecError` (a ``ValueError``) whose message names 
 the dotted key that is wrong (``dispersions.initial_tilt.normal.std``) and what was expected.
 All quantities are SI: metres, seconds, radians, kg; ``*_error`` dispersions are relative, except
 ``thruster_cant_error`` (an angle, rad).
+
+``navigation: estimate`` (at the top, or per controller: ``{name: landing, navigation: estimate}``)
+flies the law on the navigation filter's estimate from the scene's sensors instead of the truth; the
+scene needs a ``sensors`` section with the IMU, whose errors each flight draws from its own seed
+(:func:`lander_tools.sweep.case_scene.sensor_seed`). The same law listed twice, once on ``truth``
+and once on ``estimate`` (different labels), flies both on the very same cases.
 """
 from __future__ import annotations
 
@@ -186,6 +192,9 @@ class ControllerChoice:
     name: str
     params: Mapping[str, Any] = field(default_factory=dict)
     label: str = ""
+    #: What the law flies on: ``truth`` (the simulator's state) or ``estimate`` (the navigation
+    #: filter's, from the scene's sensors: lander_autopilot.estimation.onboard).
+    navigation: str = "truth"
 
 
 #: Per-flight metrics a sweep can keep (flight.py computes them all; the spec chooses).
@@ -299,8 +308,11 @@ class SweepSpec:
 
 TOP_KEYS = (
     "name", "scene", "controllers", "controller", "flights", "seed", "control_rate", "end", "dispersions", "metrics",
-    "acceptance",
+    "acceptance", "navigation",
 )
+
+#: What a law can fly on (``navigation``, per spec or per controller).
+NAVIGATION = ("truth", "estimate")
 
 
 # --------------------------------------------------------------------------- parsing helpers
@@ -425,6 +437,12 @@ def _dispersions(ctx: _Ctx, value: Any) -> Dispersions:
     return Dispersions(**out)
 
 
+def _navigation(ctx: _Ctx, key: str, value: Any) -> str:
+    if value not in NAVIGATION:
+        raise ctx.fail(key, f"expected one of {', '.join(NAVIGATION)}, got {value!r}")
+    return str(value)
+
+
 def _controllers(ctx: _Ctx, data: Mapping[str, Any]) -> tuple[ControllerChoice, ...]:
     if "controllers" in data and "controller" in data:
         raise ctx.fail("controller", "give either controller or controllers, not both")
@@ -435,21 +453,23 @@ def _controllers(ctx: _Ctx, data: Mapping[str, Any]) -> tuple[ControllerChoice, 
     items = raw if isinstance(raw, list) else [raw]
     if not items:
         raise ctx.fail(key, "empty: name at least one controller")
+    default_nav = _navigation(ctx, "navigation", data.get("navigation", "truth"))
     out: list[ControllerChoice] = []
     for i, item in enumerate(items):
         k = f"{key}[{i}]" if isinstance(raw, list) else key
         if isinstance(item, str):
-            out.append(ControllerChoice(item, {}, item))
+            out.append(ControllerChoice(item, {}, item, default_nav))
             continue
         m = _mapping(ctx, k, item)
-        _check_keys(ctx, k, m, ("name", "params", "label"))
+        _check_keys(ctx, k, m, ("name", "params", "label", "navigation"))
         if not isinstance(m.get("name"), str):
             raise ctx.fail(f"{k}.name", f"expected a controller name, got {m.get('name')!r}")
         params = dict(_mapping(ctx, f"{k}.params", m.get("params", {}) or {}))
         label = m.get("label", m["name"])
         if not isinstance(label, str):
             raise ctx.fail(f"{k}.label", f"expected a string, got {label!r}")
-        out.append(ControllerChoice(m["name"], params, label))
+        nav = _navigation(ctx, f"{k}.navigation", m.get("navigation", default_nav))
+        out.append(ControllerChoice(m["name"], params, label, nav))
     labels = [c.label for c in out]
     if len(set(labels)) != len(labels):
         raise ctx.fail(key, f"controller labels must differ (give each a label), got {labels}")

@@ -1,0 +1,101 @@
+"""Flying on the estimate in the core: the sensors and the navigation filter riding along a Simulation.
+
+:class:`Onboard` does, without ROS, what the simulator node's sensors and the estimator node do
+together (docs/estimation.md, "On ROS: the estimator node"):
+
+* at the flight's first instant the sensors sample the truth of that instant
+  (:func:`lander_sim.sensors.truth.truth_of`, the throttles as set for the coming step) and the
+  filter starts at the truth plus an error drawn from ``P0`` with the initial-error generator of
+  ``seed`` (:func:`.flights.start_filter`, :func:`.flights.initial_error_rng`);
+* after every physics step the sensors sample the step (:func:`~lander_sim.sensors.truth.truth_after_step`)
+  and each due sample, a dropout included, becomes a :class:`~.ticks.Reading` stamped in integer
+  nanoseconds ``round(t 1e9)`` (the stamps' resolution on ROS);
+* at a control tick :class:`~.ticks.TickFeeder` applies the tick's readings in its fixed order
+  (propagate on each step's IMU reading, then the aiding updates of that step), and the estimate
+  becomes the :class:`~lander_sim.physics.state.StateView` a controller is given: position,
+  velocity, attitude, ZXZ angles and body rate ``omega_m - b_g`` from the filter, the fuel from the
+  simulation (what the lander knows of itself without navigating, as the estimator's state message).
+
+A controller flown on :meth:`Onboard.state` in place of ``Simulation.state()`` flies on the estimate
+and on nothing else of the truth but its fuel.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from lander_sim.physics.state import FUEL, StateView
+from lander_sim.sensors.base import Truth
+from lander_sim.sensors.suite import SensorsConfig, SensorSuite
+from lander_sim.sensors.truth import truth_after_step, truth_of
+from lander_sim.simulation import Simulation
+
+from .flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
+from .ticks import Reading, TickFeeder
+
+
+def stamp_ns(t: float) -> int:
+    """Sim time ``t`` [s] as integer nanoseconds, rounded to nearest (a ROS stamp's resolution)."""
+    return int(round(t * 1e9))
+
+
+class Onboard:
+    """The sensors of ``sensors`` (seeded with ``seed``; None: the section's own) and a filter fed from
+    them along ``sim``, from its present instant, which must be the flight's first (module docstring).
+
+    Step the simulation with :meth:`step` (one physics step at a time, each sampled), and read the
+    estimate at a control tick with :meth:`state`. ``initial_sigma``: the initial estimation errors
+    (1 sigma: position [m], velocity [m/s], attitude [rad])."""
+
+    def __init__(self, sim: Simulation, sensors: SensorsConfig, seed: int | None = None,
+                 initial_sigma: tuple[float, float, float] = INITIAL_SIGMA) -> None:
+        if "imu" not in sensors.sections:
+            raise ValueError(f"scene {sim.scene.name}: flying on the estimate needs sensors.imu switched on")
+        g = sim.scene.models.get("gravity")
+        if g is None or g.kind != "inverse-square":
+            raise ValueError(f"scene {sim.scene.name}: the filter's gravity model needs models.gravity.kind: inverse-square")
+        rate = float(sensors.sections["imu"]["rate"])
+        if rate * sim.dt < 1.0 - 1e-9:
+            raise ValueError(f"scene {sim.scene.name}: sensors.imu.rate ({rate:g} Hz) must sample every "
+                             f"{sim.dt:g} s step: the filter propagates on each step's IMU reading")
+        self.seed = sensors.seed if seed is None else int(seed)
+        self.sensors = dataclasses.replace(sensors, seed=self.seed)
+        self.sim = sim
+        self.suite = SensorSuite(self.sensors)
+        self.feeder = TickFeeder(self.sensors)
+        truth = truth_of(sim)
+        self._feed(truth)
+        P0 = initial_covariance(self.sensors, initial_sigma)
+        self.feeder.start(start_filter(self.sensors, truth.r_W, truth.v_W, truth.q, sim.t, P0,
+                                       initial_error_rng(self.seed), float(g.gm), float(g.radius)))
+
+    def _feed(self, truth: Truth) -> None:
+        t_ns = stamp_ns(truth.t)
+        for key, m in self.suite.sample_due(truth):
+            self.feeder.add(Reading(key, t_ns) if m is None else Reading(key, t_ns, m.z, m.sigma))
+
+    def step(self, n: int = 1) -> None:
+        """Advance the simulation ``n`` steps one at a time, the sensors sampling each; none after
+        the lander is down (the step that reaches the ground ends inside it)."""
+        sim = self.sim
+        for _ in range(n):
+            if sim.phase.name != "FLYING":
+                sim.step(1)
+                continue
+            y_before, t_before = sim.y.copy(), sim.t
+            sim.step(1)
+            if sim.phase.name == "FLYING":
+                self._feed(truth_after_step(sim, y_before, sim.t - t_before))
+
+    def state(self, t: float | None = None) -> StateView:
+        """The estimate at the simulation's present instant (every reading up to it applied) as the
+        state a controller reads; ``t`` [s] its time stamp (default the simulation's)."""
+        sim = self.sim
+        t_ns = stamp_ns(sim.t)
+        if not self.feeder.ready(t_ns):
+            raise RuntimeError(f"t = {sim.t} s: the readings of the tick are not all in")
+        self.feeder.advance(t_ns)
+        e = self.feeder.estimate()
+        return StateView(t=sim.t if t is None else t, r_W=e.r_W, v_W=e.v_W, q=e.q, euler=np.asarray(e.euler, float),
+                         omega_B=e.omega_B, fuel=float(sim.y[FUEL]))

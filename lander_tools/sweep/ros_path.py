@@ -60,6 +60,9 @@ def plan_for_case(
     topics: tuple[str, ...] | None = None,
 ) -> FlightPlan:
     """A :class:`lander_tools.fly.plan.FlightPlan` flying case ``index`` in lockstep, as fast as possible."""
+    if spec.controllers[controller_index].navigation != "truth":
+        raise NotRepresentable(f"controller {spec.controllers[controller_index].label!r} flies on the estimate: "
+                               "the through-ROS check flies the laws on the truth only (lander fly --estimate flies one)")
     scene0 = nominal_scene(spec)
     case = draw_case(spec, index, scene0.vehicle.n_thrusters)
     scene_path = write_case_scene(spec, case, folder)

@@ -8,6 +8,12 @@
   one call after the set-up; ``trajectory_rel_diff`` is the largest difference of the two loops'
   states at the control instants, relative to each part's size (position, velocity, quaternion,
   body rate, fuel).
+* ``estimate_loops_per_s``, ``estimate_over_truth``: the same flight with the sensors of
+  ``landing-sensors`` (IMU, star tracker, altimeter, Doppler) switched on and the law flown on the
+  navigation filter's estimate (:class:`lander_autopilot.estimation.onboard.Onboard`: sensors
+  sampled every step, the filter fed a tick at a time), in Python, timed alternately with the
+  Python loop on the truth in this run; ``estimate_filter_share``: the fraction of its time in the
+  filter (``TickFeeder.advance``, propagation and updates).
 * ``ceiling_loops_per_s``, ``loop_over_ceiling``: bench/ceiling_loop.py's fused loop of the same
   flight (written only to be fast, bit for bit the same samples: ``ceiling_vs_loop_max_rel``) and
   the compiled loop as a fraction of it, the two alternating in this run.
@@ -37,6 +43,7 @@ import ceiling_loop
 import numpy as np
 
 from lander_autopilot.controllers import Demand, make_controller
+from lander_autopilot.estimation.onboard import Onboard
 from lander_autopilot.controllers.compiled import compiled_form
 from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
@@ -70,6 +77,48 @@ def python_loop(repeats: int) -> tuple[float, np.ndarray]:
         best = min(best, time.perf_counter() - t0)
         states[n] = sim.y
     return n / best, states
+
+
+def sensor_scene():
+    """``SCENE`` with the sensors of ``landing-sensors`` switched on (the flight itself is the same)."""
+    scene = load_scene(SCENE)
+    sensors = load_scene("landing-sensors").sensors
+    return dataclasses.replace(scene, name=f"{SCENE}-sensors", sensors=dataclasses.replace(sensors, seed=1))
+
+
+def estimate_loop(repeats: int) -> dict[str, float]:
+    """Loops per second of the Python closed loop on the estimate and on the truth (alternating, best
+    of ``repeats`` each), and the share of the estimate loop's time in the filter."""
+    scene = sensor_scene()
+    ctrl = make_controller(LAW, scene.vehicle)
+    demand = Demand()
+    n = int(round(DURATION / scene.dt))
+    best = {"truth": float("inf"), "estimate": float("inf")}
+    filt = 0.0
+    for _ in range(repeats):
+        for nav in best:
+            sim = Simulation(scene)
+            ctrl.reset()
+            t0 = time.perf_counter()
+            if nav == "truth":
+                for _ in range(n):
+                    sim.set_throttles(ctrl.update(sim.t, sim.state(), demand).throttles)
+                    sim.step()
+                best[nav] = min(best[nav], time.perf_counter() - t0)
+                continue
+            onboard = Onboard(sim, scene.sensors)
+            in_filter = 0.0
+            for _ in range(n):
+                f0 = time.perf_counter()
+                state = onboard.state()
+                in_filter += time.perf_counter() - f0
+                sim.set_throttles(ctrl.update(sim.t, state, demand).throttles)
+                onboard.step()
+            wall = time.perf_counter() - t0
+            if wall < best[nav]:
+                best[nav], filt = wall, in_filter / wall
+    return {"truth_loops_per_s": n / best["truth"], "estimate_loops_per_s": n / best["estimate"],
+            "estimate_over_truth": best["truth"] / best["estimate"], "estimate_filter_share": filt}
 
 
 def compiled_loop(copies: int, repeats: int) -> tuple[float, np.ndarray]:
@@ -145,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()[0]
     py_rate, py_states = python_loop(2 if args.quick else 5)
     c_rate, c_states = compiled_loop(50 if args.quick else 500, 3)
+    est = estimate_loop(2 if args.quick else 5)
     side = ceiling_loop.time_side_by_side(ceiling_loop.flight(), 50 if args.quick else 300, 3 if args.quick else 5)
     diffs = {name: float(np.max(np.abs(c_states[:, s] - py_states[:, s])) / np.max(np.abs(py_states[:, s])))
              for name, s in PARTS.items()}
@@ -153,7 +203,8 @@ def main(argv: list[str] | None = None) -> int:
     data = {
         "scene": SCENE, "controller": LAW, "flight_s": DURATION, "load_average_1min": load,
         "python_loops_per_s": py_rate, "compiled_loops_per_s": c_rate, "loop_speedup": c_rate / py_rate,
-        "trajectory_rel_diff": diffs, "ceiling_loops_per_s": side["ceiling_loops_per_s"],
+        "estimate_loops_per_s": est["estimate_loops_per_s"], "estimate_over_truth": est["estimate_over_truth"],
+        "estimate_filter_share": est["estimate_filter_share"], "trajectory_rel_diff": diffs, "ceiling_loops_per_s": side["ceiling_loops_per_s"],
         "loop_over_ceiling": side["loop_over_ceiling"], "ceiling_vs_loop_max_rel": ceiling_loop.agreement(ceiling_loop.flight()),
         **sweeps,
         "sweep_speedup": sweeps["batched_flights_per_s"] / sweeps["per_flight_flights_per_s"],
@@ -161,7 +212,11 @@ def main(argv: list[str] | None = None) -> int:
     }
     print(C.table(f"Closed loop, one flight of {SCENE} with {LAW!r} ({DURATION:g} s at 10 Hz; load {load:.1f} on {os.cpu_count()} cores)",
                   ["loop", "loops/s", "us/loop"],
-                  [["Python", py_rate, 1e6 / py_rate], ["compiled (1 thread)", c_rate, 1e6 / c_rate]]))
+                  [["Python", py_rate, 1e6 / py_rate], ["compiled (1 thread)", c_rate, 1e6 / c_rate],
+                   ["Python, sensors on, truth (alternating with the next)", est["truth_loops_per_s"], 1e6 / est["truth_loops_per_s"]],
+                   ["Python, on the estimate (sensors + filter)", est["estimate_loops_per_s"], 1e6 / est["estimate_loops_per_s"]]]))
+    print(f"on the estimate: {est['estimate_over_truth']:.2f} x the loops/s on the truth; "
+          f"{100 * est['estimate_filter_share']:.0f} % of its time in the filter (no compiled filter)\n")
     print(f"compiled loop / ceiling (bench/ceiling_loop.py: the same flight fused, written only to be fast; alternating, "
           f"medians of {side['rounds']}): {data['loop_over_ceiling']:.2f} ({side['compiled_loops_per_s']:.3g} vs "
           f"{data['ceiling_loops_per_s']:.3g} loops/s); ceiling vs loop, max rel. difference {data['ceiling_vs_loop_max_rel']:.3g}\n")

@@ -31,6 +31,7 @@ from lander_sim.sensors.suite import SensorsConfig, SensorSuite
 from lander_sim.sensors.truth import truth_after_step, truth_of
 from lander_sim.simulation import Simulation
 
+from .compiled import compiled_copy
 from .flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
 from .ticks import Reading, TickFeeder
 
@@ -46,10 +47,12 @@ class Onboard:
 
     Step the simulation with :meth:`step` (one physics step at a time, each sampled), and read the
     estimate at a control tick with :meth:`state`. ``initial_sigma``: the initial estimation errors
-    (1 sigma: position [m], velocity [m/s], attitude [rad])."""
+    (1 sigma: position [m], velocity [m/s], attitude [rad]). ``compiled``: the filter with its
+    covariance steps compiled (:class:`.compiled.CompiledNavFilter`, the same filter to rounding,
+    faster) instead of :class:`~.ekf.NavFilter` (the estimator node's, to the bit)."""
 
     def __init__(self, sim: Simulation, sensors: SensorsConfig, seed: int | None = None,
-                 initial_sigma: tuple[float, float, float] = INITIAL_SIGMA) -> None:
+                 initial_sigma: tuple[float, float, float] = INITIAL_SIGMA, compiled: bool = False) -> None:
         if "imu" not in sensors.sections:
             raise ValueError(f"scene {sim.scene.name}: flying on the estimate needs sensors.imu switched on")
         g = sim.scene.models.get("gravity")
@@ -67,8 +70,9 @@ class Onboard:
         truth = truth_of(sim)
         self._feed(truth)
         P0 = initial_covariance(self.sensors, initial_sigma)
-        self.feeder.start(start_filter(self.sensors, truth.r_W, truth.v_W, truth.q, sim.t, P0,
-                                       initial_error_rng(self.seed), float(g.gm), float(g.radius)))
+        filt = start_filter(self.sensors, truth.r_W, truth.v_W, truth.q, sim.t, P0, initial_error_rng(self.seed),
+                            float(g.gm), float(g.radius))
+        self.feeder.start(compiled_copy(filt) if compiled else filt)
 
     def _feed(self, truth: Truth) -> None:
         t_ns = stamp_ns(truth.t)

@@ -85,8 +85,9 @@ def case_controller(spec: SweepSpec, ci: int, vehicle: Any) -> Any:
 def navigator(spec: SweepSpec, ci: int, sim: Any) -> Any:
     """What controller ``ci`` flies on in ``sim``: None for the truth, or for ``navigation: estimate``
     the scene's sensors and the navigation filter riding along (:class:`~lander_autopilot.estimation.
-    onboard.Onboard`, seeded by the flight's ``sensors.seed``). A scene without the sensors the
-    filter needs is a :class:`FlightSetupError`."""
+    onboard.Onboard`, seeded by the flight's ``sensors.seed``), its covariance steps compiled (the
+    estimator node's filter to rounding). A scene without the sensors the filter needs is a
+    :class:`FlightSetupError`."""
     if spec.controllers[ci].navigation != "estimate":
         return None
     from lander_autopilot.estimation.onboard import Onboard
@@ -96,7 +97,7 @@ def navigator(spec: SweepSpec, ci: int, sim: Any) -> Any:
         raise FlightSetupError(f"controllers[{ci}].navigation: estimate: scene {spec.scene!r} has no sensors.imu "
                                "(fly on the estimate from a scene with sensors, e.g. landing-hover-sensors)")
     try:
-        return Onboard(sim, sensors)
+        return Onboard(sim, sensors, compiled=True)
     except ValueError as exc:
         raise FlightSetupError(f"controllers[{ci}].navigation: estimate: {exc}") from exc
 

@@ -94,13 +94,13 @@ def test_each_flight_has_its_own_sensor_seed_and_the_case_is_unchanged():
 
 def test_the_sweeps_flight_on_the_estimate_is_the_core_parts_flight_bit_for_bit():
     """fly_case on the estimate = a loop written from the core parts: the flight's scene, the
-    Onboard sensors and filter with the scene's (per-flight) sensor seed, the law every 0.1 s."""
+    Onboard sensors and compiled filter with the scene's (per-flight) sensor seed, the law every 0.1 s."""
     spec = spec_of()
     index = 1
     got = fly_case(spec, 1, index, record=True).trajectory
     scene = flown_scene(spec, draw_case(spec, index, nominal_scene(spec).vehicle.n_thrusters))
     sim = Simulation(scene)
-    onboard = Onboard(sim, scene.sensors, scene.sensors.seed)
+    onboard = Onboard(sim, scene.sensors, scene.sensors.seed, compiled=True)
     law = make_controller("landing", nominal_scene(spec).vehicle)
     throttles = []
     for k in range(len(got.t)):

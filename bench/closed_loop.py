@@ -45,8 +45,8 @@ import ceiling_loop
 import numpy as np
 
 from lander_autopilot.controllers import Demand, make_controller
-from lander_autopilot.estimation.onboard import Onboard
 from lander_autopilot.controllers.compiled import compiled_form
+from lander_autopilot.estimation.onboard import Onboard
 from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
 from lander_tools.sweep import batched, summary

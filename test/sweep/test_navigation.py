@@ -3,12 +3,15 @@ built from the core parts, and the comparison of truth and estimate on the very 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from lander_autopilot.controllers import Demand, make_controller
 from lander_autopilot.estimation.onboard import Onboard
+from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import NotRepresentable, flown_scene, nominal_scene, sensor_seed
 from lander_tools.sweep.dispersion import draw_case
@@ -127,3 +130,14 @@ def test_comparison_rows_pair_the_same_cases_and_truth_ignores_the_sensors():
     # the truth flights are those of the scene without sensors, bit for bit: sensors only observe
     plain = dataclasses.replace(spec, scene="landing-hover", controllers=spec.controllers[:1])
     assert same_rows(rows[0::2], run_local(plain, workers=1, progress=False, path="per-flight").rows)
+
+
+def test_an_imu_slower_than_the_step_is_refused_before_any_flight(tmp_path):
+    """The filter propagates on each step's IMU reading: a 5 Hz IMU at the 0.1 s step cannot feed it."""
+    data = yaml.safe_load(Path(load_scene("landing-hover-sensors").source).read_text())
+    data["name"] = "slow-imu"
+    data["sensors"]["imu"] = {"rate": 5.0}
+    path = tmp_path / "slow-imu.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(FlightSetupError, match=r"sensors.imu.rate \(5 Hz\) must sample every 0.1 s step"):
+        preflight(spec_of(scene=str(path)))

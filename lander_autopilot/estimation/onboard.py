@@ -49,10 +49,13 @@ class Onboard:
     estimate at a control tick with :meth:`state`. ``initial_sigma``: the initial estimation errors
     (1 sigma: position [m], velocity [m/s], attitude [rad]). ``compiled``: the filter with its
     covariance steps compiled (:class:`.compiled.CompiledNavFilter`, the same filter to rounding,
-    faster) instead of :class:`~.ekf.NavFilter` (the estimator node's, to the bit)."""
+    faster) instead of :class:`~.ekf.NavFilter` (the estimator node's, to the bit). ``model``: the
+    sensors as the filter models them (the IMU's noise densities and bias walks, and its switch-on
+    bias variances in ``P0``; the rates must be the flown ones), default ``sensors`` themselves."""
 
     def __init__(self, sim: Simulation, sensors: SensorsConfig, seed: int | None = None,
-                 initial_sigma: tuple[float, float, float] = INITIAL_SIGMA, compiled: bool = False) -> None:
+                 initial_sigma: tuple[float, float, float] = INITIAL_SIGMA, compiled: bool = False,
+                 model: SensorsConfig | None = None) -> None:
         if "imu" not in sensors.sections:
             raise ValueError(f"scene {sim.scene.name}: flying on the estimate needs sensors.imu switched on")
         g = sim.scene.models.get("gravity")
@@ -69,8 +72,11 @@ class Onboard:
         self.feeder = TickFeeder(self.sensors)
         truth = truth_of(sim)
         self._feed(truth)
-        P0 = initial_covariance(self.sensors, initial_sigma)
-        filt = start_filter(self.sensors, truth.r_W, truth.v_W, truth.q, sim.t, P0, initial_error_rng(self.seed),
+        believed = self.sensors if model is None else model
+        if {k: v["rate"] for k, v in believed.sections.items()} != {k: v["rate"] for k, v in sensors.sections.items()}:
+            raise ValueError("the filter's model of the sensors must have the flown sensors and rates")
+        P0 = initial_covariance(believed, initial_sigma)
+        filt = start_filter(believed, truth.r_W, truth.v_W, truth.q, sim.t, P0, initial_error_rng(self.seed),
                             float(g.gm), float(g.radius))
         self.feeder.start(compiled_copy(filt) if compiled else filt)
 

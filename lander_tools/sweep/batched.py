@@ -128,7 +128,8 @@ _PLAIN_VEHICLE_KEYS = {"preset", "thrusters", "disabled", "size"}
 _KNOWN_CASE_FIELDS = {"index", "seed", "tilt", "tilt_azimuth", "body_rate_B", "altitude_offset", "velocity_W",
                       "wind_mean_W", "wind_gust", "demand_step", "mass_error", "inertia_error", "thrust_error",
                       "failed_thruster", "failure_time", "orbit_altitude", "orbit_phase", "density_error",
-                      "thruster_cant", "thruster_cant_azimuth"}
+                      "thruster_cant", "thruster_cant_azimuth",
+                      "sensor_noise_error", "sensor_bias_error"}  # the sensors observe: no part of the physics
 
 
 class SetupTemplate:

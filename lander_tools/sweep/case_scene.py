@@ -18,7 +18,10 @@ the simulator node (:mod:`lander_tools.sweep.ros_path`). What the case changes:
   (:func:`gust_seed`), so the gusts are a function of ``(master seed, index)`` alone.
 * ``models.atmosphere.surface_density`` = the scene's times ``1 + density_error``.
 * ``sensors.seed`` (a scene with sensors) = :func:`sensor_seed`, from the flight's own stream: each
-  flight's sensor noise, switch-on biases and initial estimation error are its own.
+  flight's sensor noise, switch-on biases and initial estimation error are its own; every sensor's
+  noise parameters times ``1 + sensor_noise_error`` and its bias and bias-walk parameters times
+  ``1 + sensor_bias_error`` (:data:`SENSOR_NOISE`, :data:`SENSOR_BIAS`). The navigation filter keeps
+  the nominal scene's IMU model (what the designer believes), as the controller its vehicle.
 * thruster directions tilted by ``thruster_cant`` (:func:`canted_directions`): **no scene key
   carries them yet**, so :func:`flown_scene` applies them to the parsed scene's vehicle and
   :func:`write_case_scene` (the through-ROS path) refuses such a case (:class:`NotRepresentable`).
@@ -84,6 +87,15 @@ def scene_data(spec: SweepSpec) -> dict[str, Any]:
 def gust_seed(case: FlightCase) -> int:
     """Seed of the flight's gust process, in [0, 2**63) (a ROS int64 parameter can carry it)."""
     return int(gust_stream(case).integers(0, 2**63 - 1))
+
+
+#: The noise parameters (``sensor_noise_error``) and the bias and bias-walk parameters
+#: (``sensor_bias_error``) of each sensor (lander_sim.sensors' parameter tables).
+SENSOR_NOISE = {"imu": ("gyro_noise_density", "accel_noise_density"), "star_tracker": ("noise",),
+                "altimeter": ("noise_floor", "noise_fraction"), "doppler": ("noise_floor", "noise_fraction"),
+                "ground_fix": ("position_noise", "velocity_noise")}
+SENSOR_BIAS = {"imu": ("gyro_bias", "accel_bias", "gyro_bias_walk", "accel_bias_walk"), "star_tracker": ("bias",),
+               "altimeter": ("bias",), "doppler": ("bias",)}
 
 
 def sensor_seed(case: FlightCase) -> int:
@@ -213,6 +225,16 @@ def case_scene_data(spec: SweepSpec, case: FlightCase) -> dict[str, Any]:
     data["wind"] = wind
     if isinstance(data.get("sensors"), dict):
         data["sensors"] = {**data["sensors"], "seed": sensor_seed(case)}
+    for name, error, table in (("sensor_noise_error", case.sensor_noise_error, SENSOR_NOISE),
+                               ("sensor_bias_error", case.sensor_bias_error, SENSOR_BIAS)):
+        if error:
+            if scene.sensors is None:
+                raise NotRepresentable(f"dispersions.{name}: scene {scene.name!r} has no sensors")
+            for key, values in scene.sensors.sections.items():
+                section = dict(data["sensors"].get(key) or {})
+                for param in table.get(key, ()):
+                    section[param] = float(values[param]) * (1.0 + error)
+                data["sensors"][key] = section
     if case.density_error:
         atmosphere = scene.models.get("atmosphere")
         if atmosphere is None:

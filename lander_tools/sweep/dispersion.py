@@ -72,6 +72,9 @@ class FlightCase:
     thruster_cant_azimuth : tuple of float
         ... about the axis perpendicular to it at this azimuth [rad]
         (:func:`~.case_scene.canted_directions`); empty when the dispersion is off.
+    sensor_noise_error, sensor_bias_error : float
+        Relative errors of every sensor's noise parameters, and of its bias and bias-walk
+        parameters, vs the scene's (:func:`~.case_scene.case_scene_data`).
     """
 
     index: int
@@ -94,6 +97,8 @@ class FlightCase:
     density_error: float = 0.0
     thruster_cant: tuple[float, ...] = ()
     thruster_cant_azimuth: tuple[float, ...] = ()
+    sensor_noise_error: float = 0.0
+    sensor_bias_error: float = 0.0
 
     def parameters(self) -> dict[str, float]:
         """Scalar summary of the case for tables and scatter plots (vectors as magnitudes)."""
@@ -114,6 +119,8 @@ class FlightCase:
             "orbit_phase": self.orbit_phase,
             "density_error": self.density_error,
             "thruster_cant_max": max((abs(a) for a in self.thruster_cant), default=0.0),
+            "sensor_noise_error": self.sensor_noise_error,
+            "sensor_bias_error": self.sensor_bias_error,
         }
 
     def to_dict(self) -> dict[str, object]:
@@ -176,6 +183,8 @@ def draw_case(spec: SweepSpec, index: int, n_thrusters: int) -> FlightCase:
         density_error=max(float(_draw(spec, index, "density_error", d.density_error)), _MIN_RELATIVE),
         thruster_cant=cant,
         thruster_cant_azimuth=cant_azimuth,
+        sensor_noise_error=max(float(_draw(spec, index, "sensor_noise_error", d.sensor_noise_error)), _MIN_RELATIVE),
+        sensor_bias_error=max(float(_draw(spec, index, "sensor_bias_error", d.sensor_bias_error)), _MIN_RELATIVE),
     )
 
 

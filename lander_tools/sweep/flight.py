@@ -86,7 +86,8 @@ def navigator(spec: SweepSpec, ci: int, sim: Any) -> Any:
     """What controller ``ci`` flies on in ``sim``: None for the truth, or for ``navigation: estimate``
     the scene's sensors and the navigation filter riding along (:class:`~lander_autopilot.estimation.
     onboard.Onboard`, seeded by the flight's ``sensors.seed``), its covariance steps compiled (the
-    estimator node's filter to rounding). A scene without the sensors the filter needs is a
+    estimator node's filter to rounding), modelling the nominal scene's sensors (the flown ones carry
+    the case's ``sensor_*_error``). A scene without the sensors the filter needs is a
     :class:`FlightSetupError`."""
     if spec.controllers[ci].navigation != "estimate":
         return None
@@ -97,7 +98,7 @@ def navigator(spec: SweepSpec, ci: int, sim: Any) -> Any:
         raise FlightSetupError(f"controllers[{ci}].navigation: estimate: scene {spec.scene!r} has no sensors.imu "
                                "(fly on the estimate from a scene with sensors, e.g. landing-hover-sensors)")
     try:
-        return Onboard(sim, sensors, compiled=True)
+        return Onboard(sim, sensors, compiled=True, model=nominal_scene(spec).sensors)
     except ValueError as exc:
         raise FlightSetupError(f"controllers[{ci}].navigation: estimate: {exc}") from exc
 

@@ -29,7 +29,7 @@ PARAMETER_UNITS: dict[str, str] = {
     "wind_mean": "m/s", "wind_gust": "m/s", "demand_step": "m", "mass_error": "relative, -",
     "inertia_error": "relative, -", "thrust_error_max": "relative, -", "failed_thruster": "index",
     "failure_time": "s", "orbit_altitude": "m", "orbit_phase": "rad", "density_error": "relative, -",
-    "thruster_cant_max": "rad",
+    "thruster_cant_max": "rad", "sensor_noise_error": "relative, -", "sensor_bias_error": "relative, -",
 }
 
 

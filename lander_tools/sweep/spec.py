@@ -96,10 +96,12 @@ DISPERSION_KEYS: dict[str, str] = {
     "orbit_phase": "rotation of the initial position and velocity about the orbit normal r x v [rad]",
     "density_error": "relative error of the flown atmosphere's surface density vs the controller's model [-]",
     "thruster_cant_error": "tilt of each thruster's direction about a random axis perpendicular to it [rad]",
+    "sensor_noise_error": "relative error of every sensor's noise parameters vs the scene's (the filter's model) [-]",
+    "sensor_bias_error": "relative error of every sensor's bias and bias-walk parameters vs the scene's [-]",
 }
 
 #: Relative errors must keep the physical quantity positive.
-_RELATIVE = ("mass_error", "inertia_error", "thrust_error", "density_error")
+_RELATIVE = ("mass_error", "inertia_error", "thrust_error", "density_error", "sensor_noise_error", "sensor_bias_error")
 #: Quantities that are magnitudes, never negative.
 _NON_NEGATIVE = ("wind_gust",)
 
@@ -123,6 +125,8 @@ class Dispersions:
     orbit_phase: Distribution | None = None
     density_error: Distribution | None = None
     thruster_cant_error: Distribution | None = None
+    sensor_noise_error: Distribution | None = None
+    sensor_bias_error: Distribution | None = None
 
 
 # --------------------------------------------------------------------------- the rest of the spec

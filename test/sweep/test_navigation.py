@@ -15,7 +15,7 @@ from lander_sim.scenes import load_scene
 from lander_sim.simulation import Simulation
 from lander_tools.sweep.case_scene import NotRepresentable, flown_scene, nominal_scene, sensor_seed
 from lander_tools.sweep.dispersion import draw_case
-from lander_tools.sweep.flight import FlightSetupError, fly_case, preflight
+from lander_tools.sweep.flight import FlightSetupError, fly_case, navigator, preflight
 from lander_tools.sweep.runner import choose_path, run_local
 from lander_tools.sweep.spec import SweepSpecError, parse_spec
 
@@ -141,3 +141,36 @@ def test_an_imu_slower_than_the_step_is_refused_before_any_flight(tmp_path):
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(FlightSetupError, match=r"sensors.imu.rate \(5 Hz\) must sample every 0.1 s step"):
         preflight(spec_of(scene=str(path)))
+
+
+def test_sensor_error_dispersions_scale_the_flown_sensors_and_not_the_filters_model():
+    spec = spec_of(dispersions={**LANDING["dispersions"],
+                                "sensor_noise_error": {"uniform": {"min": 0.5, "max": 0.6}},
+                                "sensor_bias_error": {"fixed": -0.25}})
+    nominal = nominal_scene(spec).sensors.sections
+    case = draw_case(spec, 2, nominal_scene(spec).vehicle.n_thrusters)
+    assert 0.5 <= case.sensor_noise_error <= 0.6 and case.sensor_bias_error == -0.25
+    # their own streams: the other draws are those of the spec without them
+    assert dataclasses.replace(case, sensor_noise_error=0.0, sensor_bias_error=0.0) == draw_case(
+        spec_of(), 2, nominal_scene(spec).vehicle.n_thrusters)
+    flown = flown_scene(spec, case).sensors.sections
+    k_noise, k_bias = 1.0 + case.sensor_noise_error, 0.75
+    assert flown["imu"]["gyro_noise_density"] == nominal["imu"]["gyro_noise_density"] * k_noise
+    assert flown["altimeter"]["noise_floor"] == nominal["altimeter"]["noise_floor"] * k_noise
+    assert flown["doppler"]["noise_fraction"] == nominal["doppler"]["noise_fraction"] * k_noise
+    assert flown["imu"]["accel_bias"] == nominal["imu"]["accel_bias"] * k_bias
+    assert flown["imu"]["gyro_bias_walk"] == nominal["imu"]["gyro_bias_walk"] * k_bias
+    assert all(flown[k]["rate"] == nominal[k]["rate"] for k in nominal)
+    # the filter models the nominal IMU (noise densities, and the switch-on bias variance in P0)
+    sim = Simulation(flown_scene(spec, case))
+    filt = navigator(spec, 1, sim).feeder.filter
+    assert filt.noise.gyro_noise_density == nominal["imu"]["gyro_noise_density"]
+    assert filt.state.P[9, 9] == nominal["imu"]["gyro_bias"] ** 2
+    assert fly_case(spec, 1, 2).row["sensor_noise_error"] == case.sensor_noise_error
+
+
+def test_sensor_error_dispersions_need_a_scene_with_sensors():
+    spec = spec_of(scene="landing-hover", controllers=["landing"],
+                   dispersions={"sensor_noise_error": {"fixed": 0.1}})
+    with pytest.raises(NotRepresentable, match="dispersions.sensor_noise_error: scene 'landing-hover' has no sensors"):
+        preflight(spec)

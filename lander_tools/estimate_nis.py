@@ -60,6 +60,11 @@ STATE_TOPIC = "/lander/state"
 PROB = 0.95
 
 
+#: Why a bag without the IMU's messages has no NIS.
+NO_IMU = ("the bag holds no /lander/sensors/imu message, so the filter cannot be re-run (lander fly --estimate "
+          "--record records the sensor topics)")
+
+
 class NisUnavailable(Exception):
     """Why NIS cannot be reported for a bag (one line)."""
 
@@ -274,10 +279,9 @@ def from_bag(bag: Any) -> NisReport:
     from lander_sim.scenes import SceneError, load_scene
 
     t0 = time.perf_counter()
+    if not bag.messages("/lander/sensors/imu"):
+        raise NisUnavailable(NO_IMU)
     setup = setup_from_meta(bag.meta)
-    if "/lander/sensors/imu" not in bag.topics or not bag.messages("/lander/sensors/imu"):
-        raise NisUnavailable("the bag holds no /lander/sensors/imu, so the filter cannot be re-run (a flight "
-                             "recorded by lander fly --estimate records the sensor topics)")
     try:
         scene = load_scene(setup.scene)
     except (SceneError, OSError) as exc:
@@ -301,7 +305,11 @@ def from_bag(bag: Any) -> NisReport:
     readings: list[Reading] = []
     for key, topic in zip(SENSOR_KEYS, SENSOR_TOPICS):
         if key in scene.sensors:
-            readings += [convert.reading(key, m) for m in _last_flight(bag.messages(topic), stamp)]
+            try:
+                readings += [convert.reading(key, m) for m in _last_flight(bag.messages(topic), stamp)]
+            except (AttributeError, TypeError, ValueError, IndexError) as exc:
+                raise NisUnavailable(f"{topic} cannot be read as the simulator's sensor message "
+                                     f"({type(exc).__name__}: {exc})") from None
     s0 = states[0]
     p, v, o = s0.position, s0.velocity, s0.orientation
     seed = scene.sensors.seed if setup.seed is None else setup.seed

@@ -228,8 +228,10 @@ class EstimateReport:
     components: list[ComponentFigures]
     nees: dict[str, NeesCheck]  #: position, velocity, attitude (3 dof), pose (6)
     errors: EstimateErrors
-    nis: NisReport | None = None  #: the re-run's NIS (lander_tools.estimate_nis), or None and
-    nis_why: str = "not computed"  #: why not
+    #: NIS per sensor from the filter re-run (:mod:`lander_tools.estimate_nis`); None when not reported,
+    #: and then ``nis_why`` says why.
+    nis: NisReport | None = None
+    nis_why: str = "not computed"
 
     def summary(self) -> dict[str, Any]:
         """The numbers, SI units, JSON-ready (``lander analyse --json``'s ``"estimate"``)."""

@@ -140,7 +140,7 @@ def replay(feeder: TickFeeder, readings: Iterable[Reading], ticks_ns: Sequence[i
 # --- the check against the recorded Odometry -------------------------------------------------------
 
 
-def _odometry() -> Any:
+def odometry_message() -> Any:
     """A message-shaped namespace that :func:`~lander_autopilot.ros.estimator_convert.fill_odometry` fills."""
     def vec() -> SimpleNamespace:
         return SimpleNamespace(x=0.0, y=0.0, z=0.0)
@@ -174,7 +174,7 @@ def odometry_check(states: Sequence[Any], recorded: Sequence[Any]) -> TickCheck:
     bit for bit (module docstring); ``states[k]`` is the truth the node answered."""
     from lander_autopilot.ros import estimator_convert as convert
 
-    mine = _odometry()
+    mine = odometry_message()
     no_gyro = np.zeros(3)  # the gyro reading's variance enters only the angular block, not compared
 
     def check(k: int, feeder: TickFeeder) -> str | None:
@@ -232,7 +232,8 @@ def sensor_nis(updates: Sequence[tuple[float, Update]], prob: float = PROB) -> d
 
 @dataclass
 class NisReport:
-    """NIS of a bag's flight: the re-run's ``setup``, ``states`` checked bit for bit, its wall time
+    """NIS of a bag's flight: the re-run's ``setup``, ``states`` checked bit for bit (every state
+    with a recorded estimate, from the flight's first), its wall time
     ``wall_s`` [s], and per sensor :class:`SensorNis`."""
 
     setup: FilterSetup
@@ -251,7 +252,7 @@ class NisReport:
 
     def lines(self) -> list[str]:
         out = [f"  NIS: the filter re-run over the bag's sensor messages ({self.setup.describe()}) reproduces the "
-               f"recorded estimate bit for bit at all {self.states} states ({self.wall_s:.1f} s)"]
+               f"recorded estimate bit for bit at every one of its {self.states} states ({self.wall_s:.1f} s)"]
         if not self.sensors:
             return out + ["  NIS: no update in the flight (every aiding sensor out of range)"]
         head = ["NIS", "dof", "updates", "mean", "95 % (independent updates)", "95 % (single update)", "updates inside"]

@@ -124,7 +124,7 @@ def _recorded(sensors: SensorsConfig, readings: list[Reading], seed: int = 11) -
     out = []
 
     def keep(k: int, feeder: TickFeeder) -> None:
-        msg = en._odometry()
+        msg = en.odometry_message()
         convert.fill_odometry(msg, states[k], feeder.estimate(), feeder.filter, np.full(3, 1e-8))
         out.append(msg)
     en.replay(_feeder(sensors, seed), readings, _ticks(), keep)

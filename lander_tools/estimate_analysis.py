@@ -37,8 +37,11 @@ two 95 % intervals (:func:`lander_autopilot.estimation.consistency.average_bound
   holds it with room. ``frac_inside`` is the fraction of samples whose NEES lies in the
   single-time interval (0.95 for a consistent filter).
 
-**NIS** needs each update's innovation ``y`` and its covariance ``S``; the estimator node publishes
-neither (its Odometry is the state after the tick's updates), so NIS is n/a (:data:`NIS_NA`).
+**NIS** needs each update's innovation ``y`` and its covariance ``S``, which the estimator node
+does not publish (its Odometry is the state after the tick's updates): :mod:`lander_tools.estimate_nis`
+re-runs the filter over the bag's sensor messages, checks that it reproduces the recorded Odometry
+bit for bit at every state, and only then reports NIS per sensor; otherwise NIS is n/a with the
+reason.
 """
 from __future__ import annotations
 
@@ -52,6 +55,9 @@ import numpy as np
 from lander_autopilot.estimation.consistency import anees, average_bounds
 from lander_autopilot.estimation.ekf import attitude_error
 from lander_sim.physics.rotation import quat_to_matrix
+from lander_tools.estimate_nis import NisReport, NisUnavailable
+from lander_tools.estimate_nis import figure as nis_figure_of
+from lander_tools.estimate_nis import from_bag as nis_from_bag
 from lander_tools.metrics_fit import ESTIMATE_TOPIC, estimate_applies
 
 ODOMETRY_TOPIC = ESTIMATE_TOPIC
@@ -69,9 +75,6 @@ FRAMES = {
 }
 #: Percentiles of |error| per component.
 PERCENTILES = (50.0, 95.0, 99.0)
-#: Why NIS is not reported (module docstring).
-NIS_NA = ("the estimator node publishes no innovations (each update's y and S); the Odometry is the "
-          "state after the tick's updates")
 #: Why a bag has no estimate figures.
 NO_ESTIMATE = f"the bag holds no {ODOMETRY_TOPIC} (record a flight flown with lander fly --estimate)"
 
@@ -225,6 +228,10 @@ class EstimateReport:
     components: list[ComponentFigures]
     nees: dict[str, NeesCheck]  #: position, velocity, attitude (3 dof), pose (6)
     errors: EstimateErrors
+    #: NIS per sensor from the filter re-run (:mod:`lander_tools.estimate_nis`); None when not reported,
+    #: and then ``nis_why`` says why.
+    nis: NisReport | None = None
+    nis_why: str = "not computed"
 
     def summary(self) -> dict[str, Any]:
         """The numbers, SI units, JSON-ready (``lander analyse --json``'s ``"estimate"``)."""
@@ -236,7 +243,9 @@ class EstimateReport:
             "nees": {k: {"mean": n.mean, "dof": n.dof, "samples": n.samples, "bounds": list(n.bounds),
                          "bounds_single_time": list(n.bounds_one), "frac_inside": n.frac_inside}
                      for k, n in self.nees.items()},
-            "nis": None, "nis_why": NIS_NA,
+            "nis": None if self.nis is None else self.nis.summary(),
+            "nis_why": "" if self.nis is not None else self.nis_why,
+            "rerun": None if self.nis is None else self.nis.rerun_summary(),
         }
 
     def lines(self) -> list[str]:
@@ -256,7 +265,7 @@ class EstimateReport:
             widths = [max(len(x) for x in col) for col in zip(h, *rs)]
             fmt = "  " + "  ".join(f"{{:<{w}}}" for w in widths)
             out += [fmt.format(*h).rstrip()] + [fmt.format(*r).rstrip() for r in rs]
-        out.append(f"  NIS: n/a: {NIS_NA}")
+        out += self.nis.lines() if self.nis is not None else [f"  NIS: n/a: {self.nis_why}"]
         return out
 
 
@@ -288,6 +297,10 @@ def from_bag(bag: Any, flight: Any) -> tuple[EstimateReport | None, str]:
     rep = report(flight.name, flight.t, flight.r_W, flight.v_W, flight.q, track)
     if rep is None:
         return None, f"no message of {ODOMETRY_TOPIC} has the stamp of a state of the flight"
+    try:
+        rep.nis, rep.nis_why = nis_from_bag(bag), ""
+    except NisUnavailable as exc:
+        rep.nis_why = str(exc)
     return rep, ""
 
 
@@ -343,12 +356,16 @@ def nees_figure(rep: EstimateReport) -> Any:
 
 
 def write_figures(rep: EstimateReport, outdir: Path, prefix: str, suffix: str = "") -> list[Path]:
-    """``<prefix>-estimate<suffix>.png`` (:func:`figure`) and ``<prefix>-nees<suffix>.png``
-    (:func:`nees_figure`) in ``outdir``; the paths written."""
+    """``<prefix>-estimate<suffix>.png`` (:func:`figure`), ``<prefix>-nees<suffix>.png``
+    (:func:`nees_figure`) and, where NIS is reported, ``<prefix>-nis<suffix>.png``
+    (:func:`lander_tools.estimate_nis.figure`) in ``outdir``; the paths written."""
     from lander_tools import plotstyle as ps
 
-    return [ps.save(figure(rep), outdir / f"{prefix}-estimate{suffix}.png"),
-            ps.save(nees_figure(rep), outdir / f"{prefix}-nees{suffix}.png")]
+    out = [ps.save(figure(rep), outdir / f"{prefix}-estimate{suffix}.png"),
+           ps.save(nees_figure(rep), outdir / f"{prefix}-nees{suffix}.png")]
+    if rep.nis is not None and rep.nis.sensors:
+        out.append(ps.save(nis_figure_of(rep.name, rep.nis), outdir / f"{prefix}-nis{suffix}.png"))
+    return out
 
 
 def inside_3sigma_gaussian(k: float = 3.0) -> float:

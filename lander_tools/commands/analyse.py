@@ -15,11 +15,13 @@ demand, no feasible descent) is a one-line error, exit 2.
 A bag that holds the estimate (a flight flown with ``lander fly --estimate``) gets the estimate's
 figures after the table (:mod:`lander_tools.estimate_analysis`): per state component the error
 against the truth with percentiles and the fraction inside the filter's 3 sigma, the NEES of
-position, velocity, attitude and pose against their chi-square 95 % intervals, NIS as n/a (no
-innovations recorded); as ``"estimate"`` in the JSON (one entry per bag, ``"applies": false`` with
-the reason where the bag has no estimate); with ``--out``, ``<prefix>-estimate.png`` (error and
-+-3 sigma per component) and ``<prefix>-nees.png`` (``-<n>`` before ``.png`` for the n-th of several
-bags). Bags without an estimate print nothing of it in the table.
+position, velocity, attitude and pose against their chi-square 95 % intervals, and the NIS of each
+sensor's updates from the filter re-run over the bag's sensor messages, once the re-run reproduces
+the recorded estimate bit for bit (:mod:`lander_tools.estimate_nis`; else NIS n/a with the reason);
+as ``"estimate"`` in the JSON (one entry per bag, ``"applies": false`` with the reason where the bag
+has no estimate); with ``--out``, ``<prefix>-estimate.png`` (error and +-3 sigma per component),
+``<prefix>-nees.png`` and, with NIS, ``<prefix>-nis.png`` (``-<n>`` before ``.png`` for the n-th of
+several bags). Bags without an estimate print nothing of it in the table.
 Heavy imports (numpy, matplotlib, rosbags, cvxpy) happen in :func:`run`.
 """
 

@@ -7,11 +7,17 @@
   position and attitude), to the rounding of one rotation there and back;
 * the filter is consistent on the flight by the test ``consistency.anees`` applies to a
   time-average: each block's time-averaged NEES inside the chi-square(n) single-time 95 % interval;
-* the command prints the estimate's section and writes its two figures.
+* NIS: the filter re-run over the bag's sensor messages (lander_tools.estimate_nis) reproduces the
+  recorded estimate bit for bit at every state, and reports one star-tracker update per reading
+  (the radars give "no readings" above their range: no update), each of 3 components, the time
+  average inside the single-update interval; one tampered estimate, or another seed in the bag's
+  metadata than the flight's, makes NIS n/a with the state and field that differ;
+* the command prints the estimate's section and writes its three figures.
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -22,6 +28,7 @@ import pytest
 
 from lander_autopilot.estimation.ekf import attitude_error
 from lander_tools import estimate_analysis as ea
+from lander_tools import estimate_nis as en
 from lander_tools.analysis import Flight
 from lander_tools.bagio import read_bag
 
@@ -77,5 +84,36 @@ def test_analyse_prints_the_estimate_and_draws_its_figures(bag: Path, tmp_path: 
     r = _lander("analyse", str(bag), "--json", "--out", str(tmp_path))
     assert r.returncode == 0, r.stderr
     est = json.loads(r.stdout)["estimate"][0]
-    assert est["applies"] is True and est["states_unpaired"] == 0 and est["nis"] is None
-    assert (tmp_path / "flight-estimate.png").is_file() and (tmp_path / "flight-nees.png").is_file()
+    assert est["applies"] is True and est["states_unpaired"] == 0 and est["nis_why"] == ""
+    assert set(est["nis"]) == {"star_tracker"} and est["rerun"]["scene"] == SCENE
+    for name in ("flight-estimate.png", "flight-nees.png", "flight-nis.png"):
+        assert (tmp_path / name).is_file(), name
+
+
+def test_the_re_run_reproduces_the_recorded_estimate_and_nis_is_reported(bag: Path) -> None:
+    b = read_bag(bag)
+    rep = en.from_bag(b)
+    states = b.messages("/lander/state")
+    assert rep.states == len(states) == len(b.messages(ea.ODOMETRY_TOPIC))
+    readings = [m for m in b.messages("/lander/sensors/star_tracker") if m.pose.covariance[21] >= 0.0]
+    assert list(rep.sensors) == ["star_tracker"]  # the radars are out of range: no reading, no update
+    s = rep.sensors["star_tracker"]
+    assert s.dof == 3 and len(s.values) == len(readings) == math.floor(DURATION * 5.0) + 1  # 5 Hz, t = 0 .. 20 s
+    assert s.bounds_one[0] <= s.mean <= s.bounds_one[1], s
+
+
+def test_a_tampered_estimate_or_another_seed_gets_nis_na_with_the_reason(bag: Path) -> None:
+    b = read_bag(bag)
+    odom = b.messages(ea.ODOMETRY_TOPIC)
+    k = len(odom) // 2
+    odom[k].pose.pose.position.x += 1e-3  # [m]
+    with pytest.raises(en.NisUnavailable, match=rf"state {k + 1} \(t = [0-9.]+ s\) differs in position"):
+        en.from_bag(b)
+    rep, _ = ea.from_bag(b, Flight.from_bag(b))
+    assert rep is not None and rep.nis is None and f"state {k + 1}" in rep.nis_why
+    assert f"  NIS: n/a: {rep.nis_why}" in rep.lines()
+
+    b = read_bag(bag)
+    b.meta["seed"] = "12345"  # not the seed the estimator drew its initial error with
+    with pytest.raises(en.NisUnavailable, match=r"state 1 \(t = 0 s\) differs in position.*seed 12345"):
+        en.from_bag(b)

@@ -174,3 +174,11 @@ def test_sensor_error_dispersions_need_a_scene_with_sensors():
                    dispersions={"sensor_noise_error": {"fixed": 0.1}})
     with pytest.raises(NotRepresentable, match="dispersions.sensor_noise_error: scene 'landing-hover' has no sensors"):
         preflight(spec)
+
+
+def test_flights_on_the_estimate_are_the_same_bits_on_two_workers_as_in_this_process():
+    spec = spec_of(controllers=[{"name": "landing", "label": "estimate", "navigation": "estimate"}], flights=2)
+    one = run_local(spec, workers=1, progress=False)
+    two = run_local(spec, workers=2, progress=False)
+    assert one.path == two.path == "per-flight"
+    assert same_rows(one.rows, two.rows)

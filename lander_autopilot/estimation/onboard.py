@@ -17,20 +17,25 @@ together (docs/estimation.md, "On ROS: the estimator node"):
   simulation (what the lander knows of itself without navigating, as the estimator's state message).
 
 A controller flown on :meth:`Onboard.state` in place of ``Simulation.state()`` flies on the estimate
-and on nothing else of the truth but its fuel.
+and on nothing else of the truth but its fuel; :func:`fly_on_estimate` flies a scene's autopilot so.
 """
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from lander_sim.errors import InputError
 from lander_sim.physics.state import FUEL, StateView
+from lander_sim.scenes.loader import Scene
 from lander_sim.sensors.base import Truth
 from lander_sim.sensors.suite import SensorsConfig, SensorSuite
 from lander_sim.sensors.truth import truth_after_step, truth_of
 from lander_sim.simulation import Simulation
 
+from ..controllers import Demand, make_controller
+from ..controllers.base import REQUEST_DEPLOY_PARACHUTE, Controller
 from .compiled import compiled_copy
 from .flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
 from .ticks import Reading, TickFeeder
@@ -109,3 +114,61 @@ class Onboard:
         e = self.feeder.estimate()
         return StateView(t=sim.t if t is None else t, r_W=e.r_W, v_W=e.v_W, q=e.q, euler=np.asarray(e.euler, float),
                          omega_B=e.omega_B, fuel=float(sim.y[FUEL]))
+
+
+@dataclass
+class EstimateFlight:
+    """A flight on the estimate: control instants ``t`` [s], the throttles applied over each period,
+    the true and estimated positions ``r_W`` [m] at each instant, and the flight's end phase."""
+
+    t: list[float] = field(default_factory=list)
+    throttles: list[np.ndarray] = field(default_factory=list)
+    r_true: list[np.ndarray] = field(default_factory=list)
+    r_estimate: list[np.ndarray] = field(default_factory=list)
+    end: str = ""
+
+
+def fly_on_estimate(scene: Scene, duration: float, seed: int | None = None, demand: Demand | None = None,
+                    steps_per_control: int = 1, compiled: bool = False, controller: Controller | None = None,
+                    initial_sigma: tuple[float, float, float] = INITIAL_SIGMA) -> EstimateFlight:
+    """Fly a law on the estimate (:class:`Onboard`, sensors seeded with ``seed``; None: the scene's)
+    for ``duration`` [s] or until the lander is down: at every ``steps_per_control`` physics steps (the
+    control instants ``t_k = k n dt``) the law is given the estimate, its throttles are set and its
+    parachute request is acted on as the autopilot node does. ``controller``: the law (default the
+    scene's autopilot built on the scene's vehicle); ``demand``: default the scene's demand altitude
+    (500 m without one)."""
+    ap = scene.autopilot
+    if scene.sensors is None:
+        raise ValueError(f"scene {scene.name}: flying on the estimate needs sensors.imu switched on")
+    if controller is None:
+        if ap is None:
+            raise ValueError(f"scene {scene.name}: no autopilot to fly on the estimate")
+        controller = make_controller(ap.controller, scene.vehicle, **dict(ap.parameters))
+    ctrl = controller
+    sim = Simulation(scene)
+    onboard = Onboard(sim, scene.sensors, seed, initial_sigma, compiled)
+    if demand is None:
+        alt = None if ap is None else ap.demand_altitude
+        demand = Demand(altitude=500.0 if alt is None else alt)
+    period = steps_per_control * sim.dt
+    rec = EstimateFlight()
+    k = 0
+    while k * period < duration - 1e-9 and sim.phase.name == "FLYING":
+        t = k * period
+        est = onboard.state()
+        out = ctrl.update(t, est, demand)
+        for req in out.requests:
+            if req.kind == REQUEST_DEPLOY_PARACHUTE:
+                try:
+                    sim.deploy_parachute()
+                except InputError:
+                    pass  # a scene without a parachute refuses, as the simulator node's service does
+        sim.set_throttles(out.throttles)
+        rec.t.append(t)
+        rec.r_true.append(sim.y[0:3].copy())
+        rec.r_estimate.append(est.r_W.copy())
+        onboard.step(steps_per_control)
+        rec.throttles.append(sim.throttles)
+        k += 1
+    rec.end = sim.phase.name
+    return rec

@@ -115,7 +115,6 @@ class EstimatorNode(Node):
         self._next_wait_report = 0.0
         self.estimates = 0
         self.refused = 0  # states and readings refused (strangers, non-increasing stamps)
-        self._gyro_var = np.zeros(3)
         self._state_msg = LanderState()
         self._odom_msg = Odometry()
         self._odom_msg.header.frame_id = "mars"
@@ -159,10 +158,7 @@ class EstimatorNode(Node):
                 if refusal:
                     self.get_logger().warning(refusal)
                 return
-            r = convert.reading(key, msg)
-            if key == "imu" and r.sigma is not None:
-                self._gyro_var = r.sigma[0:3] ** 2
-            self.feeder.add(r)
+            self.feeder.add(convert.reading(key, msg))
             self._answer()
         return on_message
 
@@ -217,7 +213,7 @@ class EstimatorNode(Node):
             convert.fill_state(self._state_msg, truth, est, self._gimbal_threshold)
             self._pub_state.publish(self._state_msg)
             assert self.feeder.filter is not None
-            convert.fill_odometry(self._odom_msg, truth, est, self.feeder.filter, self._gyro_var)
+            convert.fill_odometry(self._odom_msg, truth, est, self.feeder.filter, self.feeder.omega_var)
             self._pub_odom.publish(self._odom_msg)
             self.estimates += 1
 

@@ -11,10 +11,9 @@ recorded sensor messages, as the node did (:func:`replay`), and keeps every upda
 state its Odometry, computed by the node's own conversion
 (:func:`lander_autopilot.ros.estimator_convert.fill_odometry`), must equal the recorded
 ``/lander/estimate/odometry`` bit for bit: position, orientation, linear and angular twist, the pose
-covariance (the filter's ``P`` over ``[dr, dth]``, copied) and the velocity block of the twist
-covariance (``R P_vv R^T``). The angular block of the twist covariance is left out: it adds the
-variance of the last gyro reading the node had *received*, which depends on message arrival, not on
-the filter. The first state that differs ends the re-run and NIS is n/a, with the state and the
+covariance (the filter's ``P`` over ``[dr, dth]``, copied) and the twist covariance (``R P_vv R^T``,
+and the gyro bias's ``P_bg`` plus the variance of the gyro reading the filter last applied). The
+first state that differs ends the re-run and NIS is n/a, with the state and the
 field named (another seed or initial sigmas than the bag's metadata says, another estimator
 version, a tampered estimate).
 
@@ -150,10 +149,6 @@ def odometry_message() -> Any:
                            twist=SimpleNamespace(twist=SimpleNamespace(linear=vec(), angular=vec()), covariance=[]))
 
 
-#: Indices of the twist covariance compared: its velocity block (module docstring, "The check").
-_TWIST_V = np.array([6 * i + j for i in range(3) for j in range(3)])
-
-
 def odometry_fields(msg: Any) -> dict[str, bytes]:
     """The compared fields of an Odometry (recorded or re-run) as float64 bytes, by name."""
     p, o = msg.pose.pose.position, msg.pose.pose.orientation
@@ -165,7 +160,7 @@ def odometry_fields(msg: Any) -> dict[str, bytes]:
         "position": b((p.x, p.y, p.z)), "orientation": b((o.x, o.y, o.z, o.w)),
         "twist.linear": b((lin.x, lin.y, lin.z)), "twist.angular": b((ang.x, ang.y, ang.z)),
         "pose.covariance": b(msg.pose.covariance),
-        "twist.covariance (velocity block)": b(np.asarray(msg.twist.covariance, dtype=np.float64)[_TWIST_V]),
+        "twist.covariance": b(msg.twist.covariance),
     }
 
 
@@ -175,11 +170,10 @@ def odometry_check(states: Sequence[Any], recorded: Sequence[Any]) -> TickCheck:
     from lander_autopilot.ros import estimator_convert as convert
 
     mine = odometry_message()
-    no_gyro = np.zeros(3)  # the gyro reading's variance enters only the angular block, not compared
 
     def check(k: int, feeder: TickFeeder) -> str | None:
         assert feeder.filter is not None
-        convert.fill_odometry(mine, states[k], feeder.estimate(), feeder.filter, no_gyro)
+        convert.fill_odometry(mine, states[k], feeder.estimate(), feeder.filter, feeder.omega_var)
         got, want = odometry_fields(mine), odometry_fields(recorded[k])
         bad = [name for name in want if got[name] != want[name]]
         if not bad:

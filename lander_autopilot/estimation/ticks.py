@@ -103,6 +103,8 @@ class TickFeeder:
         self.schedule = SampleSchedule(self.rates)
         self.t_ns: int | None = None  # stamp of the last IMU reading applied
         self.omega_m = np.zeros(3)
+        #: Variance [rad^2/s^2] of the gyro reading ``omega_m`` (the last IMU reading applied; 0 before one).
+        self.omega_var = np.zeros(3)
         self.updates = 0
         self.dropouts = dict.fromkeys(self.rates, 0)
         self.unexpected = 0
@@ -219,6 +221,8 @@ class TickFeeder:
                 return
         self.t_ns = r.t_ns
         self.omega_m = np.asarray(r.z[0:3], float)
+        if r.sigma is not None:
+            self.omega_var = np.asarray(r.sigma[0:3], float) ** 2
 
     def _aid(self, key: str, t_ns: int, use: bool = True) -> Update | None:
         assert self.filter is not None

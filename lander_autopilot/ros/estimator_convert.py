@@ -13,7 +13,8 @@
 * The estimate and its covariance -> ``nav_msgs/Odometry`` (REP 105: pose in the world frame,
   twist in the body frame). Pose covariance: position (world axes) and the attitude error angles
   ``dth`` about the body axes (the filter's error state); twist covariance: the body-frame velocity
-  ``R P_vv R^T`` and the body rate's, the gyro bias's ``P_bg`` plus the gyro reading's variance.
+  ``R P_vv R^T`` and the body rate's, the gyro bias's ``P_bg`` plus the variance of the gyro
+  reading the filter last applied (``TickFeeder.omega_var``: a function of the tick, not of arrival).
 """
 from __future__ import annotations
 

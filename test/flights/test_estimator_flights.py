@@ -85,15 +85,12 @@ def _core_estimates(got: dict[str, list[tuple[bytes, object]]]) -> list[tuple[ob
     for key, topic in zip(SENSOR_KEYS, SENSOR_TOPICS):
         for _, m in got.get(topic, []):
             feeder.add(convert.reading(key, m))
-    imu = [convert.reading("imu", m) for _, m in got["/lander/sensors/imu"]]
-    out, i = [], 0
+    out = []
     for s in states:
         t = convert.stamp_ns(s.header.stamp)
         assert feeder.ready(t), f"state {s.sequence}: the bag lacks a reading of its tick"
         feeder.advance(t)
-        while i + 1 < len(imu) and imu[i + 1].t_ns <= t:
-            i += 1
-        out.append((feeder.estimate(), feeder.filter.state.P.copy(), imu[i].sigma[0:3] ** 2))
+        out.append((feeder.estimate(), feeder.filter.state.P.copy(), feeder.omega_var.copy()))
     return out
 
 

@@ -125,7 +125,7 @@ def _recorded(sensors: SensorsConfig, readings: list[Reading], seed: int = 11) -
 
     def keep(k: int, feeder: TickFeeder) -> None:
         msg = en.odometry_message()
-        convert.fill_odometry(msg, states[k], feeder.estimate(), feeder.filter, np.full(3, 1e-8))
+        convert.fill_odometry(msg, states[k], feeder.estimate(), feeder.filter, feeder.omega_var)
         out.append(msg)
     en.replay(_feeder(sensors, seed), readings, _ticks(), keep)
     return out

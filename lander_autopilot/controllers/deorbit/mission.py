@@ -137,6 +137,7 @@ class DeorbitController(Controller):
         self.landing = LandingController(vehicle)
         self.slew_time = float(p["slew_time"])  # type: ignore[arg-type]
         self.burn_throttle = float(p["burn_throttle"])  # type: ignore[arg-type]
+        self.navigation_sigma = (float(p["navigation_velocity_sigma"]), float(p["navigation_position_sigma"]))  # type: ignore[arg-type]
         self.attitude = QuaternionAttitudeController(vehicle, poles=p["attitude_poles"], design_fuel=p["design_fuel"])  # type: ignore[arg-type]
         # the burn runs at burn_throttle: the plan's exhaust speed is the same at any throttle.
         # The plan keeps the canopy's own limits (the corridor the vehicle survives); the entry
@@ -353,7 +354,8 @@ class DeorbitController(Controller):
         if self.plan is None:
             self._t0 = t
             self.plan = plan(state.r_W, state.v_W, self.vehicle.mass(state.fuel), self.entry_vehicle,
-                             slew_time=self.slew_time, min_chute_altitude=self.chute_altitude)
+                             slew_time=self.slew_time, min_chute_altitude=self.chute_altitude,
+                             velocity_sigma=self.navigation_sigma[0], position_sigma=self.navigation_sigma[1])
         since = t - (self._t0 or 0.0)
         h = altitude(state)
         if self.phase is Phase.SLEW and burn_due(since, self.plan.burn_start):

@@ -10,7 +10,8 @@ Phases (:mod:`.phases`, forward only; each change is the controller's ``mode``, 
 node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
 
     deorbit-slew  turn the thrust axis (body +z) retrograde; the burn is planned at the first step
-                  (:func:`lander_autopilot.guidance.deorbit.plan`, with the canopy's own limits)
+                  (:func:`lander_autopilot.guidance.deorbit.plan`, with the canopy's own limits
+                  and the state's navigation error, ``navigation_*_sigma``)
     deorbit-burn  from the planned start: collective throttle with the attitude law's differential
                   on top (attitude priority), until the osculating periapsis is down to the plan's
     coast         throttles off: with no aerodynamic torque on the sphere the attitude drifts at

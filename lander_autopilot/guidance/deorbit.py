@@ -5,8 +5,8 @@ Plain numpy and scipy (no rclpy). World frame ``mars``: planet-centred, inertial
 The burn is retrograde (against the velocity) at the orbit's apoapsis, or after ``slew_time`` for an
 orbit too close to circular to have one worth waiting for: lowering the periapsis is cheapest there
 (vis-viva). "Too close to circular" allows for the navigation error of the state the plan is made
-from (:func:`circular_tolerance`): an apoapsis the error alone could make is not waited for. Its size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is
-chosen by flying the entry as a point mass under inverse-square gravity and drag (the lander's
+from (:func:`circular_tolerance`): an apoapsis the error alone could make is not waited for. Its
+size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is chosen by flying the entry as a point mass under inverse-square gravity and drag (the lander's
 sphere, its models' constants) and keeping the highest periapsis whose entry is captured in one
 pass and slows below the parachute's deployment speed with the canopy's drag under its limit: a
 higher periapsis costs less fuel (the burn is smaller) and decelerates more gently.
@@ -169,7 +169,7 @@ def circular_tolerance(semi_major_axis: float, velocity_sigma: float = 0.0, posi
 
         tol = max(CIRCULAR_ORBIT, 2 a k sqrt((2 sigma_v / v + sigma_r / a)^2 + (sigma_v / v)^2))
 
-    At 1.2 Mars radii (a = 4074 km, v = 3242 m/s), 0.5 m/s and 10 m at 3 sigma: 8.5 km.
+    At 1.2 Mars radii (a = 4074 km, v = 3242 m/s), 0.5 m/s and 10 m at 3 sigma: 8.4 km.
     """
     a = semi_major_axis
     v = math.sqrt(gm / a)

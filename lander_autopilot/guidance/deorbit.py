@@ -6,8 +6,9 @@ The burn is retrograde (against the velocity) at the orbit's apoapsis, or after 
 orbit too close to circular to have one worth waiting for: lowering the periapsis is cheapest there
 (vis-viva). "Too close to circular" allows for the navigation error of the state the plan is made
 from (:func:`circular_tolerance`): an apoapsis the error alone could make is not waited for. Its
-size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is chosen by flying the entry as a point mass under inverse-square gravity and drag (the lander's
-sphere, its models' constants) and keeping the highest periapsis whose entry is captured in one
+size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is chosen by
+flying the entry as a point mass under inverse-square gravity and drag (the lander's sphere, its
+models' constants) and keeping the highest periapsis whose entry is captured in one
 pass and slows below the parachute's deployment speed with the canopy's drag under its limit: a
 higher periapsis costs less fuel (the burn is smaller) and decelerates more gently.
 

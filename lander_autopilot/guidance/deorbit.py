@@ -4,9 +4,11 @@ Plain numpy and scipy (no rclpy). World frame ``mars``: planet-centred, inertial
 
 The burn is retrograde (against the velocity) at the orbit's apoapsis, or after ``slew_time`` for an
 orbit too close to circular to have one worth waiting for: lowering the periapsis is cheapest there
-(vis-viva). Its size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is
-chosen by flying the entry as a point mass under inverse-square gravity and drag (the lander's
-sphere, its models' constants) and keeping the highest periapsis whose entry is captured in one
+(vis-viva). "Too close to circular" allows for the navigation error of the state the plan is made
+from (:func:`circular_tolerance`): an apoapsis the error alone could make is not waited for. Its
+size puts the periapsis at a chosen altitude inside the atmosphere; the altitude is chosen by
+flying the entry as a point mass under inverse-square gravity and drag (the lander's sphere, its
+models' constants) and keeping the highest periapsis whose entry is captured in one
 pass and slows below the parachute's deployment speed with the canopy's drag under its limit: a
 higher periapsis costs less fuel (the burn is smaller) and decelerates more gently.
 
@@ -42,6 +44,10 @@ ENTRY_MAX_TIME = 7200.0
 #: starts after the slew (the speed at the apoapsis differs from the mean by ~v dr / 4a: 0.24 m/s
 #: for 1 km at 200 km, against a de-orbit burn of tens of m/s)
 CIRCULAR_ORBIT = 1000.0
+#: [-] how many standard deviations of the navigation error the circularity test allows for: 3 sigma
+#: on every axis at once (a circular orbit seen through a Gaussian error of that sigma is taken for
+#: elliptic in about 0.1 % of draws: ``P(4 x^2 + y^2 > 45)`` for unit normals x, y)
+NAVIGATION_SIGMAS = 3.0
 #: [-] eccentricity under which an orbit is circular for Kepler's equation (no apoapsis defined)
 CIRCULAR_ECCENTRICITY = 1e-9
 #: Two-body propagation's tolerances: relative 1e-10 and absolute 1e-6 (m, m/s), metres over an
@@ -144,6 +150,33 @@ class DeorbitPlan:
     entry: EntryCheck
 
 
+def circular_tolerance(semi_major_axis: float, velocity_sigma: float = 0.0, position_sigma: float = 0.0,
+                       sigmas: float = NAVIGATION_SIGMAS, gm: float = c.GM_MARS) -> float:
+    """[m] Apsides difference under which an orbit of ``semi_major_axis`` [m] counts as circular, for a
+    state known to ``velocity_sigma`` [m/s] and ``position_sigma`` [m] (1 sigma per axis; 0: the truth).
+
+    A circular orbit (radius ``a``, speed ``v = sqrt(GM / a)``) seen with velocity errors ``dv_t``
+    (along the track) and ``dv_r`` (radial) and a radial position error ``dr`` has, to first order
+    in the errors (the eccentricity vector ``e = ((v^2 - GM/r) r - (r.v) v) / GM`` of
+    :meth:`Orbit.of`, linearised about the circle), the components ``2 dv_t / v + dr / a`` and
+    ``dv_r / v`` at right angles, so its apsides differ by
+
+        r_a - r_p = 2 a e = 2 a sqrt((2 dv_t / v + dr / a)^2 + (dv_r / v)^2)
+
+    (an along-track position error and the normal components change no eccentricity to first order).
+    The tolerance is that split for errors of ``sigmas`` standard deviations on every axis at once,
+    with the worst signs, and never under :data:`CIRCULAR_ORBIT` (the split not worth waiting for
+    even on the truth):
+
+        tol = max(CIRCULAR_ORBIT, 2 a k sqrt((2 sigma_v / v + sigma_r / a)^2 + (sigma_v / v)^2))
+
+    At 1.2 Mars radii (a = 4074 km, v = 3242 m/s), 0.5 m/s and 10 m at 3 sigma: 8.4 km.
+    """
+    a = semi_major_axis
+    v = math.sqrt(gm / a)
+    return max(CIRCULAR_ORBIT, 2 * a * sigmas * math.hypot(2 * velocity_sigma / v + position_sigma / a, velocity_sigma / v))
+
+
 def _propagate(position_W: np.ndarray, velocity_W: np.ndarray, t: float, gm: float) -> tuple[np.ndarray, np.ndarray]:
     """Two-body state after ``t`` s (RK45 to 1e-10 relative: the planner's precision is ~1 m)."""
     from scipy.integrate import solve_ivp
@@ -190,8 +223,13 @@ def fly_entry(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehic
 
 def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: EntryVehicle,
          slew_time: float = SLEW_TIME, periapsis_altitudes: tuple[float, ...] = tuple(range(150_000, 9_999, -5_000)),
-         min_chute_altitude: float = CHUTE_ALTITUDE, gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS) -> DeorbitPlan:
+         min_chute_altitude: float = CHUTE_ALTITUDE, gm: float = c.GM_MARS, radius: float = c.MARS_RADIUS,
+         velocity_sigma: float = 0.0, position_sigma: float = 0.0) -> DeorbitPlan:
     """The cheapest single retrograde burn whose entry is survivable (see the module docstring).
+
+    ``velocity_sigma`` [m/s] and ``position_sigma`` [m]: the navigation error of the state (1 sigma
+    per axis; 0, the default: the truth). An orbit whose apsides differ by under
+    :func:`circular_tolerance` is flown as circular: the burn starts after the slew.
 
     ``periapsis_altitudes`` are tried from the highest (least fuel) down; the first whose entry is
     captured with the chute able to open at least ``min_chute_altitude`` above the surface wins.
@@ -201,8 +239,10 @@ def plan(position_W: np.ndarray, velocity_W: np.ndarray, mass: float, vehicle: E
     position_W, velocity_W = np.asarray(position_W, float), np.asarray(velocity_W, float)
     orbit = Orbit.of(position_W, velocity_W, gm)
     period = 2 * math.pi * math.sqrt(orbit.semi_major_axis**3 / gm)
-    # An orbit whose apsides differ by under 1 km has no apoapsis worth waiting for: burn after the slew.
-    circular = orbit.apoapsis_radius - orbit.periapsis_radius < CIRCULAR_ORBIT
+    # An orbit whose apsides differ by under 1 km, or by under what the navigation error alone makes,
+    # has no apoapsis worth waiting for: burn after the slew.
+    tolerance = circular_tolerance(orbit.semi_major_axis, velocity_sigma, position_sigma, gm=gm)
+    circular = orbit.apoapsis_radius - orbit.periapsis_radius < tolerance
     centre = slew_time if circular else orbit.time_to_apoapsis
     for _ in range(3):
         burn = _cheapest_burn(position_W, velocity_W, mass, vehicle, centre, periapsis_altitudes,

@@ -10,7 +10,8 @@ Phases (:mod:`.phases`, forward only; each change is the controller's ``mode``, 
 node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
 
     deorbit-slew  turn the thrust axis (body +z) retrograde; the burn is planned at the first step
-                  (:func:`lander_autopilot.guidance.deorbit.plan`, with the canopy's own limits)
+                  (:func:`lander_autopilot.guidance.deorbit.plan`, with the canopy's own limits
+                  and the state's navigation error, ``navigation_*_sigma``)
     deorbit-burn  from the planned start: collective throttle with the attitude law's differential
                   on top (attitude priority), until the osculating periapsis is down to the plan's
     coast         throttles off: with no aerodynamic torque on the sphere the attitude drifts at
@@ -137,6 +138,7 @@ class DeorbitController(Controller):
         self.landing = LandingController(vehicle)
         self.slew_time = float(p["slew_time"])  # type: ignore[arg-type]
         self.burn_throttle = float(p["burn_throttle"])  # type: ignore[arg-type]
+        self.navigation_sigma = (float(p["navigation_velocity_sigma"]), float(p["navigation_position_sigma"]))  # type: ignore[arg-type]
         self.attitude = QuaternionAttitudeController(vehicle, poles=p["attitude_poles"], design_fuel=p["design_fuel"])  # type: ignore[arg-type]
         # the burn runs at burn_throttle: the plan's exhaust speed is the same at any throttle.
         # The plan keeps the canopy's own limits (the corridor the vehicle survives); the entry
@@ -353,7 +355,8 @@ class DeorbitController(Controller):
         if self.plan is None:
             self._t0 = t
             self.plan = plan(state.r_W, state.v_W, self.vehicle.mass(state.fuel), self.entry_vehicle,
-                             slew_time=self.slew_time, min_chute_altitude=self.chute_altitude)
+                             slew_time=self.slew_time, min_chute_altitude=self.chute_altitude,
+                             velocity_sigma=self.navigation_sigma[0], position_sigma=self.navigation_sigma[1])
         since = t - (self._t0 or 0.0)
         h = altitude(state)
         if self.phase is Phase.SLEW and burn_due(since, self.plan.burn_start):

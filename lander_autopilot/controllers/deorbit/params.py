@@ -35,6 +35,11 @@ from .mpc import ATTITUDE_LAG, AXIS_TIME, COAST_COLLECTIVE, MAX_TILT
 MISSION_ROWS: tuple[Param, ...] = (
     Param("slew_time", SLEW_TIME, "s", "> 0", "time before the de-orbit burn may start, to turn the thrust axis retrograde",
           positive),
+    Param("navigation_velocity_sigma", 0.0, "m/s", ">= 0",
+          "velocity error (1 sigma/axis) of the state the burn is planned from: no waiting for an apoapsis it made (0: truth)",
+          non_negative),
+    Param("navigation_position_sigma", 0.0, "m", ">= 0",
+          "position error (1 sigma/axis) of the state the burn is planned from (0: the truth)", non_negative),
     Param("burn_throttle", 0.85, "-", "> 0",
           "collective throttle of the de-orbit burn (and of an entry that must brake); the rest is the attitude law's",
           positive),

@@ -10,9 +10,9 @@ are removed. At session end (in the controller, under xdist) all dead processes'
 
 In pytest-xdist workers (``./dev test`` runs ``-n auto --dist loadgroup``) each worker is a run of
 its own in the sense above (its own domain ids, held by lock files); the ROS test files that use
-Fast DDS's shared-memory transport (``rosutil.ROS_SHM_TESTS``) run in one worker, the others file
-by file in any, the other ROS files over UDP alone (``rosutil.transports_env``; README, "Tests in
-parallel").
+Fast DDS's shared-memory transport (``rosutil.ROS_SHM_TESTS``) run in one worker, the other ROS
+files file by file in any worker over loopback UDP alone (``rosutil.transports_env``; README,
+"Tests in parallel").
 
 Fixtures for other tests:
   ros_context   a fresh rclpy Context, initialised for the test and shut down after it
@@ -92,12 +92,16 @@ def module_ros_domain(request: pytest.FixtureRequest) -> Iterator[int]:
     domain = rosutil.claim_domain_id(seed=next(_module_seeds))
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     transports = rosutil.transports_env(Path(request.path).resolve().relative_to(TEST_DIR).as_posix())
+    suite_env = {name: os.environ.get(name) for name in transports}
     os.environ.update(transports)
     try:
         yield domain
     finally:
-        for name in transports:
-            os.environ.pop(name, None)
+        for name, value in suite_env.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
         os.environ["ROS_DOMAIN_ID"] = str(ROS_DOMAIN_ID)
         leaked = rosutil.reap_domain(domain)
         # A killed node's half-made port must not hang the next module; its dead ports with locks

@@ -35,14 +35,23 @@ ROS_TESTS = ("autopilot_node/", "flights/", "interfaces/", "live/", "reliability
 #: (``fastdds_port7000`` up, whatever the domain), and when two workers start participants at once
 #: on a loaded machine, a participant's wait for a port's mutex times out and it breaks the mutex
 #: (eProsima/Fast-DDS#6117). Seen in two workers: "Failed init_port fastdds_port7001:
-#: open_and_lock_file failed", and a flight whose nodes never met. The other ROS files run file by
-#: file in any worker over UDP alone (:data:`UDP_ONLY`, set for their whole module), which opens no
-#: shared-memory port.
-ROS_SHM_TESTS = ("reliability/", "flights/test_new_user.py", "tools/test_flights_apart.py", "test_cli.py")
+#: open_and_lock_file failed" printed into a verb's one-line answer, and a flight whose nodes never
+#: met. The other ROS files run file by file in any worker over loopback UDP alone
+#: (:data:`LOOPBACK_UDP`, set for their whole module), which opens no shared-memory port.
+ROS_SHM_TESTS = ("reliability/", "flights/test_new_user.py", "tools/test_flights_apart.py", "test_cli.py",
+                 "interfaces/test_isolation.py")
 
-#: Environment of a ROS test file outside :data:`ROS_SHM_TESTS`: Fast DDS's built-in transports
-#: limited to UDPv4 (read by every participant at its creation; children inherit it).
-UDP_ONLY = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+#: The Fast DDS profile of :data:`LOOPBACK_UDP`: rmw_fastrtps's localhost discovery less its
+#: shared-memory transport (unicast discovery to 127.0.0.1, sockets on loopback only, UDPv4 alone).
+LOOPBACK_PROFILE = Path(__file__).resolve().parent / "fastdds_udp_loopback.xml"
+
+#: Environment of a ROS test file outside :data:`ROS_SHM_TESTS` (read by every participant at its
+#: creation; children inherit it). ``LOCALHOST`` cannot be kept: for it rmw_fastrtps builds the
+#: participant's transports itself, always with shared memory, whatever ``FASTDDS_BUILTIN_TRANSPORTS``
+#: or a profile says; ``SYSTEM_DEFAULT`` leaves the participant to the default profile, which keeps
+#: discovery and traffic on this machine as ``LOCALHOST`` does.
+LOOPBACK_UDP = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT",
+                "FASTDDS_DEFAULT_PROFILES_FILE": str(LOOPBACK_PROFILE)}
 
 
 def xdist_group(rel: str) -> str:
@@ -52,8 +61,8 @@ def xdist_group(rel: str) -> str:
 
 
 def transports_env(rel: str) -> dict[str, str]:
-    """Environment variables the test file ``rel`` runs under (see :data:`ROS_SHM_TESTS`)."""
-    return UDP_ONLY if rel.startswith(ROS_TESTS) and not rel.startswith(ROS_SHM_TESTS) else {}
+    """Environment variables the test file ``rel`` runs under, over the suite's (see :data:`ROS_SHM_TESTS`)."""
+    return LOOPBACK_UDP if rel.startswith(ROS_TESTS) and not rel.startswith(ROS_SHM_TESTS) else {}
 
 
 _LOCK_DIR = Path(tempfile.gettempdir()) / "mars_lander_test_domains"

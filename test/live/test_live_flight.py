@@ -398,13 +398,13 @@ def test_gains_designed_are_flown_from_the_page_and_shown_in_force(live: dict[st
     import yaml
     from playwright.sync_api import sync_playwright
 
-    from lander_tools.gains import read_gains
+    from lander_tools.gains import controller_params_text, read_gains
     from lander_tools.live.link import FlightLink
 
     gains = tmp_path / "gains.yaml"
     assert lander(["design", "hover-canted", "--altitude-poles", "-0.5", "-0.6", "--write", str(gains)]) == 0
     controller, params = read_gains(gains)
-    text = yaml.safe_dump(params, default_flow_style=True, sort_keys=True, width=1_000_000).strip()
+    text = controller_params_text(params)
     with FlightLink("test_page_gains") as link:
         before = link.get_parameters("/autopilot", ["controller", "controller_params"])
     url = f"http://127.0.0.1:{live['page_port']}/"

@@ -51,10 +51,13 @@ from lander_tools.sweep.flight import (
 from lander_tools.sweep.metrics import Samples, altitude_and_tilt
 from lander_tools.sweep.spec import SweepSpec
 
-__all__ = ["DEFAULT_CHUNK", "chunks", "fly_chunk", "fly_compiled", "laws_of", "unsupported_reason"]
+__all__ = ["DEFAULT_CHUNK", "NAV_CHUNK", "chunks", "fly_chunk", "fly_compiled", "laws_of", "navigation_unsupported",
+           "pack_navigation", "path_detail", "unsupported_reason"]
 
 #: Flights per chunk: about 50 kB each for a 60 s flight at 10 Hz (samples, gust normals, Simulation).
 DEFAULT_CHUNK = 1000
+#: Flights per compiled call on the estimate: each carries its sensors' normals (~150 B a step).
+NAV_CHUNK = 50
 
 
 def laws_of(spec: SweepSpec) -> list[Any] | None:
@@ -82,11 +85,38 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
     if spec.end.hover_hold > 0:
         return "end.hover_hold: the compiled loop has no hover-hold stop"
     for ci, choice in enumerate(spec.controllers):
-        if choice.navigation != "truth":
-            return f"controller {choice.label!r} flies on the estimate (the compiled loop has no navigation filter)"
         if compiled_form(case_controller(spec, ci, scene.vehicle)) is None:
             return f"controller {choice.label!r} has no compiled form"
+        if choice.navigation == "estimate":
+            why = navigation_unsupported(scene)
+            if why is not None:
+                return f"controller {choice.label!r} flies on the estimate: {why}"
     return None
+
+
+def navigation_unsupported(scene: Any) -> str | None:
+    """Why the compiled loop cannot fly the sensors and filter of ``scene`` (None if it can): it
+    needs what :class:`~lander_autopilot.estimation.onboard.Onboard` needs (an IMU sampling every
+    step, inverse-square gravity; the per-flight path reports their absence as the error it is)
+    and a quaternion scene (the sensors read the attitude as a quaternion)."""
+    sensors = scene.sensors
+    if sensors is None or "imu" not in sensors.sections:
+        return f"scene {scene.name!r} has no sensors.imu"
+    g = scene.models.get("gravity")
+    if g is None or g.kind != "inverse-square":
+        return f"scene {scene.name!r}: the filter needs inverse-square gravity"
+    if float(sensors.sections["imu"]["rate"]) * scene.dt < 1.0 - 1e-9:
+        return f"scene {scene.name!r}: sensors.imu.rate must sample every step"
+    if scene.attitude != "quaternion":
+        return f"scene {scene.name!r} is not a quaternion scene"
+    return None
+
+
+def path_detail(spec: SweepSpec) -> str:
+    """What the batched path flies besides the law: the sensors and filter when a law flies on the estimate."""
+    if any(c.navigation == "estimate" for c in spec.controllers):
+        return "sensors and navigation filter compiled in the loop"
+    return ""
 
 
 @dataclass
@@ -328,6 +358,39 @@ def pack_flights(flights: list[FlightSetup], n_steps: int, tpl: SetupTemplate | 
     return a
 
 
+def pack_navigation(spec: SweepSpec, flights: list[FlightSetup], y0: np.ndarray, n_steps: int, dt: float) -> dict[str, np.ndarray]:
+    """The :data:`~.batched_kernel.NAV_KEYS` arrays over ``flights`` (initial states ``y0``), as
+    :func:`~.flight.navigator` sets a flight on the estimate up: the flight's own sensors (its scene's
+    ``sensors``, seeded by its sensor seed, with its sensor dispersions) switched on
+    (:class:`~lander_sim.sensors.suite.SensorSuite`, whose generators then draw the normals of
+    ``n_steps`` steps of ``dt`` [s]), and the filter modelling the nominal scene's sensors, started
+    at the truth plus the error drawn from its ``P0`` with the flight's initial-error generator."""
+    from lander_autopilot.estimation.compiled import pack_filter
+    from lander_autopilot.estimation.flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
+    from lander_sim.sensors.compiled import pack_suite
+    from lander_sim.sensors.suite import SensorSuite
+
+    scene0 = nominal_scene(spec)
+    model = scene0.sensors
+    g = scene0.models.get("gravity")
+    gm, radius = float(g.gm), float(g.radius)
+    P0 = initial_covariance(model, INITIAL_SIGMA)
+    packed: list[tuple[np.ndarray, ...]] = []
+    for fl, y in zip(flights, y0):
+        sensors = fl.simulation().scene.sensors if fl.sim is not None else flown_scene(spec, fl.case).sensors
+        sp, bias, w, off = pack_suite(SensorSuite(sensors), n_steps, dt, radius, gm)
+        filt = start_filter(model, y[0:3].copy(), y[3:6].copy(), y[6:10].copy(), 0.0, P0,
+                            initial_error_rng(sensors.seed), gm, radius)
+        packed.append((sp, bias, w, off, *pack_filter(filt)))
+    width = max(p[2].size for p in packed)
+    w_all = np.zeros((len(packed), width))
+    for f, p in enumerate(packed):
+        w_all[f, :p[2].size] = p[2]
+    return {"nav_sp": np.array([p[0] for p in packed]), "nav_bias": np.array([p[1] for p in packed]), "nav_w": w_all,
+            "nav_off": np.array([p[3] for p in packed], dtype=np.int64), "nav_x0": np.array([p[4] for p in packed]),
+            "nav_P0": np.array([p[5] for p in packed]), "nav_qc": np.array([p[6] for p in packed])}
+
+
 def _finish_touchdown(fl: FlightSetup, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
     """Hand the touchdown step to the flight's Simulation: ``(speed, figures, altitude error, tilt, fuel)``
     of the interpolated state, as the per-flight loop sees it."""
@@ -350,6 +413,9 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
     laws = laws if laws is not None else laws_of(spec)
     if laws is None:
         raise ValueError("fly_chunk: a controller of the spec has no compiled form (use the per-flight path)")
+    navigating = [c.navigation == "estimate" for c in spec.controllers]
+    if any(navigating) and len(indices) > NAV_CHUNK:  # the sensors' normals: about 150 B a step a flight
+        return [row for part in chunks(indices, NAV_CHUNK) for row in fly_chunk(spec, part, laws, parallel, fast_setup)]
     scene0 = nominal_scene(spec)
     n_sub, period = control_period(spec, scene0.dt)
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
@@ -379,9 +445,11 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
         else:
             sim0 = flights[0].sim
             stop, dt = (sim0.ground.contact_radius if sim0.ground is not None else 0.0), sim0.dt
+        if any(navigating):
+            inputs.update(pack_navigation(spec, flights, inputs["y0"], n_ctrl * n_sub, dt))
         for ci, law in enumerate(laws):
             params, K = law.pack()
-            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, dt, stop, parallel)
+            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, dt, stop, parallel, navigation=navigating[ci])
             for f, fl in enumerate(flights):
                 rows.append(_row(spec, ci, fl, out, f, period))
     for i in broken:

@@ -52,7 +52,8 @@ from lander_tools.sweep.metrics import Samples, altitude_and_tilt
 from lander_tools.sweep.spec import SweepSpec
 
 __all__ = ["DEFAULT_CHUNK", "NAV_CHUNK", "chunks", "fly_chunk", "fly_compiled", "laws_of", "navigation_unsupported",
-           "pack_navigation", "path_detail", "unsupported_reason"]
+           "navigation_row", "pack_navigation", "path_detail", "stack_navigation",
+           "unsupported_reason"]
 
 #: Flights per chunk: about 50 kB each for a 60 s flight at 10 Hz (samples, gust normals, Simulation).
 DEFAULT_CHUNK = 1000
@@ -361,34 +362,44 @@ def pack_flights(flights: list[FlightSetup], n_steps: int, tpl: SetupTemplate | 
 def pack_navigation(spec: SweepSpec, flights: list[FlightSetup], y0: np.ndarray, n_steps: int, dt: float) -> dict[str, np.ndarray]:
     """The :data:`~.batched_kernel.NAV_KEYS` arrays over ``flights`` (initial states ``y0``), as
     :func:`~.flight.navigator` sets a flight on the estimate up: the flight's own sensors (its scene's
-    ``sensors``, seeded by its sensor seed, with its sensor dispersions) switched on
-    (:class:`~lander_sim.sensors.suite.SensorSuite`, whose generators then draw the normals of
-    ``n_steps`` steps of ``dt`` [s]), and the filter modelling the nominal scene's sensors, started
-    at the truth plus the error drawn from its ``P0`` with the flight's initial-error generator."""
+    ``sensors``, seeded by its sensor seed, with its sensor dispersions) and the filter modelling the
+    nominal scene's sensors (:func:`navigation_row`)."""
+    scene0 = nominal_scene(spec)
+    rows = []
+    for fl, y in zip(flights, y0):
+        sensors = fl.sim.scene.sensors if fl.sim is not None else flown_scene(spec, fl.case).sensors
+        rows.append(navigation_row(scene0, sensors, scene0.sensors, y, n_steps, dt))
+    return stack_navigation(rows)
+
+
+def navigation_row(scene: Any, sensors: Any, model: Any, y0: np.ndarray, n_steps: int, dt: float) -> tuple[np.ndarray, ...]:
+    """One flight's :data:`~.batched_kernel.NAV_KEYS` arrays, as :class:`~lander_autopilot.estimation.
+    onboard.Onboard` starts them: ``sensors`` (seeded) switched on (:class:`~lander_sim.sensors.suite.
+    SensorSuite`; its generators then draw the normals of ``n_steps`` steps of ``dt`` [s]), and the
+    filter modelling ``model``, started at the truth ``y0`` plus the error drawn from its ``P0`` with
+    the initial-error generator of the sensors' seed; ``scene``'s inverse-square gravity."""
     from lander_autopilot.estimation.compiled import pack_filter
     from lander_autopilot.estimation.flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
     from lander_sim.sensors.compiled import pack_suite
     from lander_sim.sensors.suite import SensorSuite
 
-    scene0 = nominal_scene(spec)
-    model = scene0.sensors
-    g = scene0.models.get("gravity")
+    g = scene.models.get("gravity")
     gm, radius = float(g.gm), float(g.radius)
-    P0 = initial_covariance(model, INITIAL_SIGMA)
-    packed: list[tuple[np.ndarray, ...]] = []
-    for fl, y in zip(flights, y0):
-        sensors = fl.simulation().scene.sensors if fl.sim is not None else flown_scene(spec, fl.case).sensors
-        sp, bias, w, off = pack_suite(SensorSuite(sensors), n_steps, dt, radius, gm)
-        filt = start_filter(model, y[0:3].copy(), y[3:6].copy(), y[6:10].copy(), 0.0, P0,
-                            initial_error_rng(sensors.seed), gm, radius)
-        packed.append((sp, bias, w, off, *pack_filter(filt)))
-    width = max(p[2].size for p in packed)
-    w_all = np.zeros((len(packed), width))
-    for f, p in enumerate(packed):
-        w_all[f, :p[2].size] = p[2]
-    return {"nav_sp": np.array([p[0] for p in packed]), "nav_bias": np.array([p[1] for p in packed]), "nav_w": w_all,
-            "nav_off": np.array([p[3] for p in packed], dtype=np.int64), "nav_x0": np.array([p[4] for p in packed]),
-            "nav_P0": np.array([p[5] for p in packed]), "nav_qc": np.array([p[6] for p in packed])}
+    sp, bias, w, off = pack_suite(SensorSuite(sensors), n_steps, dt, radius, gm)
+    filt = start_filter(model, y0[0:3].copy(), y0[3:6].copy(), y0[6:10].copy(), 0.0,
+                        initial_covariance(model, INITIAL_SIGMA), initial_error_rng(sensors.seed), gm, radius)
+    return (sp, bias, w, off, *pack_filter(filt))
+
+
+def stack_navigation(rows: list[tuple[np.ndarray, ...]]) -> dict[str, np.ndarray]:
+    """:func:`navigation_row` rows as arrays over flights (the normals padded to the longest)."""
+    w_all = np.zeros((len(rows), max(r[2].size for r in rows)))
+    for f, r in enumerate(rows):
+        w_all[f, :r[2].size] = r[2]
+    cols = list(zip(*rows))
+    return {"nav_sp": np.array(cols[0]), "nav_bias": np.array(cols[1]), "nav_w": w_all,
+            "nav_off": np.array(cols[3], dtype=np.int64), "nav_x0": np.array(cols[4]), "nav_P0": np.array(cols[5]),
+            "nav_qc": np.array(cols[6])}
 
 
 def _finish_touchdown(fl: FlightSetup, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
@@ -495,14 +506,19 @@ def chunks(indices: Sequence[int], size: int) -> Iterator[list[int]]:
 
 
 def fly_compiled(sim: Any, law: Any, demand_altitude: float, duration: float, n_sub: int = 1, copies: int = 1,
-                 record_states: bool = False, parallel: bool = False) -> dict[str, np.ndarray]:
+                 record_states: bool = False, parallel: bool = False, navigation: bool = False) -> dict[str, np.ndarray]:
     """The compiled closed loop of one flight: ``sim``'s scene from its current start, the law
     ``law`` (:class:`~lander_autopilot.controllers.compiled.CompiledLaw`) at a constant demand
-    altitude [m], every ``n_sub`` physics steps, for ``duration`` [s]. ``copies`` flies the same
-    flight that many times in one call (for timing). Returns :func:`~.batched_kernel.fly_flights`'s arrays."""
+    altitude [m], every ``n_sub`` physics steps, for ``duration`` [s]; ``navigation``: on the
+    estimate of the scene's sensors (seeded as the scene says) and the filter modelling them.
+    ``copies`` flies the same flight that many times in one call (for timing). Returns
+    :func:`~.batched_kernel.fly_flights`'s arrays."""
     period = n_sub * sim.dt
     n_ctrl = int(math.floor(duration / period + 1e-9))
     inputs = pack_flights([FlightSetup(-1, FlightCase(-1, 0), sim, (demand_altitude, demand_altitude, 0.0))] * copies, n_ctrl * n_sub)
+    if navigation:
+        sensors = sim.scene.sensors
+        inputs.update(stack_navigation([navigation_row(sim.scene, sensors, sensors, sim.y, n_ctrl * n_sub, sim.dt)] * copies))
     params, K = law.pack()
     stop = sim.ground.contact_radius if sim.ground is not None else 0.0
-    return bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, sim.dt, stop, parallel, record_states)
+    return bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, sim.dt, stop, parallel, record_states, navigation)

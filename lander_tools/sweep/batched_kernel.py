@@ -214,10 +214,9 @@ def _nav_start(f, nav, on_nav):  # pragma: no cover - compiled
     """Flight ``f``'s sensors and filter at switch-on (``nav``: see :func:`fly_flights`), or empty
     stand-ins of the same types for a flight on the truth."""
     sp_all, bias_all, w_all, off_all, x0_all, P0_all, qc_all = nav
-    g = f if on_nav else 0
     if on_nav:
-        sp, sbias, wn, off = sp_all[g], bias_all[g].copy(), w_all[g], off_all[g]
-        xs, P, qc = x0_all[g].copy(), P0_all[g].copy(), qc_all[g]
+        sp, sbias, wn, off = sp_all[f], bias_all[f].copy(), w_all[f], off_all[f]
+        xs, P, qc = x0_all[f].copy(), P0_all[f].copy(), qc_all[f]
     else:
         sp, sbias, wn, off = np.zeros(N_SP), np.zeros(6), np.zeros(0), np.zeros(N_SENSORS + 1, dtype=np.int64)
         xs, P, qc = np.zeros(N_X), np.zeros((N_ERR, N_ERR)), np.zeros(12)

@@ -29,7 +29,7 @@ from lander_sim.physics.rotation import quat_exp_step, quat_mult, quat_normalise
 
 from .ekf import DBA, DBG, DR, DTH, DV, N_ERR, NavFilter, NavState, Update, small_rotation
 
-__all__ = ["HAVE_NUMBA", "N_X", "CompiledNavFilter", "compiled_copy", "covariance_propagate", "nav_propagate",
+__all__ = ["HAVE_NUMBA", "N_ERR", "N_X", "CompiledNavFilter", "compiled_copy", "covariance_propagate", "nav_propagate",
            "nav_update_altimeter", "nav_update_doppler", "nav_update_ground_fix", "nav_update_star_tracker",
            "pack_filter", "sequential_update"]
 

@@ -133,13 +133,20 @@ class FlightSetup:
     demand: tuple[float, float, float]  # before [m], after [m], step time [s]
     spec: Any = None
     values: dict[str, Any] | None = None
+    scene: Any = None
+
+    def flown_scene(self) -> Any:
+        """The flight's scene (:func:`~.case_scene.flown_scene`, built once)."""
+        if self.scene is None:
+            self.scene = self.sim.scene if self.sim is not None else flown_scene(self.spec, self.case)
+        return self.scene
 
     def simulation(self) -> Any:
         """The flight's Simulation (built now from its scene if the fast set-up skipped it)."""
         if self.sim is None:
             from lander_sim.simulation import Simulation
 
-            self.sim = Simulation(flown_scene(self.spec, self.case))
+            self.sim = Simulation(self.flown_scene())
         return self.sim
 
 
@@ -367,7 +374,7 @@ def pack_navigation(spec: SweepSpec, flights: list[FlightSetup], y0: np.ndarray,
     scene0 = nominal_scene(spec)
     rows = []
     for fl, y in zip(flights, y0):
-        sensors = fl.sim.scene.sensors if fl.sim is not None else flown_scene(spec, fl.case).sensors
+        sensors = fl.flown_scene().sensors
         rows.append(navigation_row(scene0, sensors, scene0.sensors, y, n_steps, dt))
     return stack_navigation(rows)
 

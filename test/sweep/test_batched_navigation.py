@@ -6,8 +6,8 @@ altitude): the sensors take the very same normals (each sensor's own generator, 
 the Python sensor draws them), and the two paths differ only in the summation order of the small
 products (``R v``, ``C f``, ``r . r``; numpy's BLAS against the kernels' loops), ~1e-16 relative
 each. The filter feeds them back through the law, so they grow over a flight: measured at most
-~1e-13 relative on fuel and rates over these flights, and the altitude errors differ at the last bit
-of ``|r_W|`` (4.7e-10 m at Mars' radius).
+1.2e-10 relative (a touchdown tilt; fuel 1.2e-13) over 150-s and 400-s flights of both comparison
+specs' cases, and the altitude errors differ at the last bit of ``|r_W|`` (4.7e-10 m at Mars' radius).
 """
 from __future__ import annotations
 
@@ -123,6 +123,25 @@ def test_the_sweep_on_the_estimate_takes_the_batched_path_and_says_so():
     assert reason == "controller 'truth' has no compiled form"
     plain = dataclasses.replace(spec, scene="landing-hover")
     assert batched.unsupported_reason(plain) == "controller 'estimate' flies on the estimate: scene 'landing-hover' has no sensors.imu"
+
+
+def test_the_speed_line_of_lander_sweep_names_the_path(tmp_path, capsys):
+    """The shipped comparison on the estimate that flies batched; ``--path`` picks the other path;
+    ``--path batched`` on a sweep it cannot fly is one line naming why."""
+    from lander_tools.cli import main
+
+    spec = str(ROOT / "sweeps" / "compare-nav-hover.yaml")
+    args = ["sweep", spec, "--flights", "2", "--workers", "1", "--no-plots"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert "flights/s (core-only, no ROS; batched (sensors and navigation filter compiled in the loop) path)" in \
+        capsys.readouterr().out
+    assert main([*args, "--out", str(tmp_path / "b"), "--path", "per-flight"]) == 0
+    assert "flights/s (core-only, no ROS; per-flight (asked for) path)" in capsys.readouterr().out
+    landing = str(ROOT / "sweeps" / "compare-nav-landing-hover.yaml")
+    assert main(["sweep", landing, "--path", "batched", "--flights", "1", "--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert err == ("lander sweep: --path batched: the batched core cannot fly this sweep: "
+                   "controller 'truth' has no compiled form\n")
 
 
 # --- the parts: the compiled sensors and filter against the Python ones -----------------------------

@@ -19,9 +19,10 @@
   core (:func:`lander_tools.sweep.batched.fly_compiled` with ``navigation``: the sensors and the
   filter inside the loop, one thread), timed over ``copies`` flights in one call after the set-up.
 * ``estimate_per_flight_flights_per_s`` and ``estimate_batched_flights_per_s``: a sweep on the
-  estimate (``sweeps/compare-nav-landing-hover.yaml``'s scene, seed and dispersions with the compiled
-  ``combined-quaternion`` law in place of the landing law, which has no compiled form) on the
-  per-flight and the batched path, 2 local workers, wall time after start-up.
+  estimate (``sweeps/compare-nav-hover.yaml``'s law on the estimate alone: 60-s hovers of
+  ``combined-quaternion`` with the sensors of ``landing-hover-sensors``) on the per-flight and the
+  batched path, 2 local workers, wall time after start-up; ``estimate_summary_equal`` says whether
+  the summaries of the same flights on both paths print alike.
 * ``ceiling_loops_per_s``, ``loop_over_ceiling``: bench/ceiling_loop.py's fused loop of the same
   flight (written only to be fast, bit for bit the same samples: ``ceiling_vs_loop_max_rel``) and
   the compiled loop as a fraction of it, the two alternating in this run.
@@ -149,21 +150,18 @@ def estimate_batched_loop(copies: int, repeats: int) -> float:
 
 def estimate_sweep(flights_per_flight: int, flights_batched: int, workers: int) -> dict[str, float]:
     """Flights per second of a sweep on the estimate on both paths (module docstring)."""
-    import yaml
-
-    from lander_tools.sweep.spec import parse_spec
-
-    data = yaml.safe_load((C.ROOT / "sweeps" / "compare-nav-landing-hover.yaml").read_text())
-    data["controllers"] = [{"name": "combined-quaternion", "label": "estimate", "navigation": "estimate"}]
-    data.pop("acceptance", None)
-    spec = parse_spec(data, "compare-nav-landing-hover.yaml")
+    full = load_spec(C.ROOT / "sweeps" / "compare-nav-hover.yaml")
+    spec = dataclasses.replace(full, controllers=[c for c in full.controllers if c.navigation == "estimate"])
     run_local(dataclasses.replace(spec, flights=2), workers=1, progress=False, path="batched")  # load the compiled loop
-    pf = run_local(dataclasses.replace(spec, flights=flights_per_flight), workers=workers, progress=False, path="per-flight")
+    small = dataclasses.replace(spec, flights=flights_per_flight)
+    pf = run_local(small, workers=workers, progress=False, path="per-flight")
+    same = run_local(small, workers=workers, progress=False, path="batched")
     bt = run_local(dataclasses.replace(spec, flights=flights_batched), workers=workers, progress=False, path="batched")
+    text = [summary.format_summary(summary.summarise(r.rows, spec.metrics), []) for r in (pf, same)]
     return {"estimate_per_flight_flights": len(pf.rows), "estimate_per_flight_wall_s": pf.wall_time,
             "estimate_per_flight_flights_per_s": pf.flights_per_second, "estimate_batched_flights": len(bt.rows),
             "estimate_batched_wall_s": bt.wall_time, "estimate_batched_flights_per_s": bt.flights_per_second,
-            "estimate_batched_path": bt.path_note}
+            "estimate_batched_path": bt.path_note, "estimate_summary_equal": text[0] == text[1]}
 
 
 def compiled_loop(copies: int, repeats: int) -> tuple[float, np.ndarray]:
@@ -279,14 +277,16 @@ def main(argv: list[str] | None = None) -> int:
                   ["path", "flights", "wall [s]", "flights/s"],
                   [["per-flight", sweeps["per_flight_flights"], sweeps["per_flight_wall_s"], sweeps["per_flight_flights_per_s"]],
                    ["batched", sweeps["batched_flights"], sweeps["batched_wall_s"], sweeps["batched_flights_per_s"]]]))
-    print(C.table(f"A sweep on the estimate (compare-nav-landing-hover's cases, combined-quaternion) on {sweeps['sweep_workers']} "
+    print(C.table(f"A sweep on the estimate (sweeps/compare-nav-hover.yaml, its law on the estimate) on {sweeps['sweep_workers']} "
                   "local workers (wall time after start-up)", ["path", "flights", "wall [s]", "flights/s"],
                   [["per-flight", est_sweep["estimate_per_flight_flights"], est_sweep["estimate_per_flight_wall_s"],
                     est_sweep["estimate_per_flight_flights_per_s"]],
                    [est_sweep["estimate_batched_path"], est_sweep["estimate_batched_flights"], est_sweep["estimate_batched_wall_s"],
                     est_sweep["estimate_batched_flights_per_s"]]]))
     print(f"on the estimate: loop speed-up {est['estimate_batched_loops_per_s'] / est['estimate_compiled_loops_per_s']:.0f}x "
-          f"over the Python loop with the compiled filter, sweep speed-up {data['estimate_sweep_speedup']:.0f}x")
+          f"over the Python loop with the compiled filter, sweep speed-up {data['estimate_sweep_speedup']:.0f}x; summaries "
+          f"of the same {est_sweep['estimate_per_flight_flights']} flights on both paths "
+          f"{'print alike' if est_sweep['estimate_summary_equal'] else 'DIFFER'}")
     print(f"batched, 1 worker in this process: {sweeps['batched_1_worker_wall_s']:.2f} s wall, "
           f"{sweeps['batched_1_worker_cpu_s']:.2f} s CPU for {sweeps['batched_flights']} flights "
           "(CPU time does not depend on other load; on 2 idle cores the 2-worker wall is about half of it)")

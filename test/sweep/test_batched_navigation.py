@@ -99,13 +99,14 @@ def test_every_sensor_and_the_sensor_dispersions_down_to_a_touchdown(tmp_path):
     assert all(r["outcome"] in ("landed", "crashed") for r in rows[1::2])
 
 
-def test_flights_on_the_estimate_alone_in_chunks_and_on_threads_are_bit_identical():
+def test_flights_on_the_estimate_alone_in_chunks_on_threads_and_set_up_either_way_are_bit_identical():
     spec = landing_spec("compare-nav-landing-hover", 5, 20.0)
     rows = batched.fly_chunk(spec, range(5))
     by = {(r["index"], r["controller_index"]): r for r in rows}
     alone = batched.fly_chunk(spec, [3]) + batched.fly_chunk(spec, [4, 1])
     assert same_rows(alone, [by[(i, c)] for i in (3, 1, 4) for c in (0, 1)])
     assert same_rows(batched.fly_chunk(spec, range(5), parallel=True), rows)
+    assert same_rows(batched.fly_chunk(spec, range(5), fast_setup=False), rows)  # each flight's scene and Simulation built
     # chunks of NAV_CHUNK flights inside one call: the same rows
     small = dataclasses.replace(spec, flights=batched.NAV_CHUNK + 2)
     idx = [0, 1, batched.NAV_CHUNK, batched.NAV_CHUNK + 1]

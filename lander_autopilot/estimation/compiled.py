@@ -17,6 +17,11 @@ The kernels sum in another order than numpy's BLAS products, so the filter agree
 one to rounding, not to the bit (test/estimation/test_compiled_filter.py: after 300 random steps the
 largest relative difference is 1.5e-12, in the gyro bias; the test allows 1e-9). Without numba the kernels run as
 plain Python (the same arithmetic, slowly).
+
+For loops compiled whole (the batched sweep core, :mod:`lander_tools.sweep.batched_kernel`) the
+filter's every step is a kernel too: :func:`nav_propagate` and the ``nav_update_*`` functions work on
+a packed state ``x`` and ``P`` (:func:`pack_filter`) with the nominal-state arithmetic of
+:class:`CompiledNavFilter` written element by element and its two covariance kernels.
 """
 from __future__ import annotations
 

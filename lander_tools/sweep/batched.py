@@ -26,6 +26,12 @@ mass and inertia times their scales, thrust ``-d_i (T_i s_i)`` per thruster and 
 process of the case's own seed); ``test_batched.py`` holds them bit-identical to the Simulation's.
 The flight's Simulation is then built only if it is needed (a touchdown to hand back).
 
+**On the estimate** (a law with ``navigation: estimate``): each flight's sensors and filter are set
+up as :func:`~.flight.navigator` sets them up (:func:`pack_navigation`: the flight's own sensors
+switched on, their generators drawing the normals the flight's samples take, the filter started from
+the nominal scene's model), and fly inside the compiled loop; flights on the estimate go through it
+:data:`NAV_CHUNK` at a time (the normals are about 150 B a step a flight).
+
 Memory is bounded by flying in chunks of ``chunk`` flights.
 """
 from __future__ import annotations

@@ -11,6 +11,15 @@ and touchdown and fuel-out are checked as ``Simulation._after_step`` does. The s
 control instants are those of :class:`~lander_tools.sweep.metrics.Samples` (altitude error, tilt,
 body rate), so the metrics are computed by the same :func:`~lander_tools.sweep.metrics.evaluate`.
 
+On the estimate (``navigation``), a flight's sensors and navigation filter ride along as
+:class:`~lander_autopilot.estimation.onboard.Onboard` carries them on the per-flight path: at the
+first instant the sensors due sample the truth and the filter takes their readings; after every
+physics step still flying the sensors due sample the step (:func:`lander_sim.sensors.compiled.sample_step`
+on :func:`~lander_sim.sensors.compiled.truth_after_step`) and the filter propagates on the IMU
+reading, over the difference of the readings' nanosecond stamps, then takes the other readings in
+table order (:mod:`lander_autopilot.estimation.compiled`); at a control instant the law is given the
+estimate (position, velocity, attitude, ``omega_m - b_g``) and the true fuel.
+
 A flight that touches down stops with the state before and after that step: the caller hands them
 to the Simulation's own touchdown code (interpolation, classification). Flights are independent,
 so the ``prange`` over them gives the same numbers whatever the thread count.

@@ -13,9 +13,16 @@
   on, the law flown on the truth, and on the navigation filter's estimate
   (:class:`lander_autopilot.estimation.onboard.Onboard`: sensors sampled every step, the filter fed
   a tick at a time) with the Python filter and with the compiled one, in turn in this run (the
-  loop itself is Python: no compiled loop flies the filter); ``estimate_filter_share``,
-  ``estimate_compiled_filter_share``: the fraction of each one's time in the filter
-  (``TickFeeder.advance``: propagation and updates).
+  loop itself is Python); ``estimate_filter_share``, ``estimate_compiled_filter_share``: the
+  fraction of each one's time in the filter (``TickFeeder.advance``: propagation and updates).
+* ``estimate_batched_loops_per_s``: that flight on the estimate in the compiled loop of the batched
+  core (:func:`lander_tools.sweep.batched.fly_compiled` with ``navigation``: the sensors and the
+  filter inside the loop, one thread), timed over ``copies`` flights in one call after the set-up.
+* ``estimate_per_flight_flights_per_s`` and ``estimate_batched_flights_per_s``: a sweep on the
+  estimate (``sweeps/compare-nav-hover.yaml``'s law on the estimate alone: 60-s hovers of
+  ``combined-quaternion`` with the sensors of ``landing-hover-sensors``) on the per-flight and the
+  batched path, 2 local workers, wall time after start-up; ``estimate_summary_equal`` says whether
+  the summaries of the same flights on both paths print alike.
 * ``ceiling_loops_per_s``, ``loop_over_ceiling``: bench/ceiling_loop.py's fused loop of the same
   flight (written only to be fast, bit for bit the same samples: ``ceiling_vs_loop_max_rel``) and
   the compiled loop as a fraction of it, the two alternating in this run.
@@ -126,6 +133,37 @@ def estimate_loop(repeats: int) -> dict[str, float]:
             "estimate_compiled_filter_share": share["compiled"]}
 
 
+def estimate_batched_loop(copies: int, repeats: int) -> float:
+    """Loops per second of the compiled loop on the estimate (sensors and filter inside, one thread)."""
+    scene = sensor_scene()
+    law = compiled_form(make_controller(LAW, scene.vehicle))
+    sim = Simulation(scene)
+    best = float("inf")
+    n = int(round(DURATION / scene.dt))
+    batched.fly_compiled(sim, law, Demand().altitude, DURATION, navigation=True)  # load the compiled loop
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        batched.fly_compiled(sim, law, Demand().altitude, DURATION, copies=copies, navigation=True)
+        best = min(best, time.perf_counter() - t0)
+    return copies * n / best
+
+
+def estimate_sweep(flights_per_flight: int, flights_batched: int, workers: int) -> dict[str, float]:
+    """Flights per second of a sweep on the estimate on both paths (module docstring)."""
+    full = load_spec(C.ROOT / "sweeps" / "compare-nav-hover.yaml")
+    spec = dataclasses.replace(full, controllers=[c for c in full.controllers if c.navigation == "estimate"])
+    run_local(dataclasses.replace(spec, flights=2), workers=1, progress=False, path="batched")  # load the compiled loop
+    small = dataclasses.replace(spec, flights=flights_per_flight)
+    pf = run_local(small, workers=workers, progress=False, path="per-flight")
+    same = run_local(small, workers=workers, progress=False, path="batched")
+    bt = run_local(dataclasses.replace(spec, flights=flights_batched), workers=workers, progress=False, path="batched")
+    text = [summary.format_summary(summary.summarise(r.rows, spec.metrics), []) for r in (pf, same)]
+    return {"estimate_per_flight_flights": len(pf.rows), "estimate_per_flight_wall_s": pf.wall_time,
+            "estimate_per_flight_flights_per_s": pf.flights_per_second, "estimate_batched_flights": len(bt.rows),
+            "estimate_batched_wall_s": bt.wall_time, "estimate_batched_flights_per_s": bt.flights_per_second,
+            "estimate_batched_path": bt.path_note, "estimate_summary_equal": text[0] == text[1]}
+
+
 def compiled_loop(copies: int, repeats: int) -> tuple[float, np.ndarray]:
     """Loops per second of the compiled closed loop (one thread) and one flight's states."""
     scene = load_scene(SCENE)
@@ -200,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
     py_rate, py_states = python_loop(2 if args.quick else 5)
     c_rate, c_states = compiled_loop(50 if args.quick else 500, 3)
     est = estimate_loop(2 if args.quick else 5)
+    est["estimate_batched_loops_per_s"] = estimate_batched_loop(20 if args.quick else 100, 3)
+    est_sweep = estimate_sweep(10 if args.quick else 40, 100 if args.quick else 400, 2)
     side = ceiling_loop.time_side_by_side(ceiling_loop.flight(), 50 if args.quick else 300, 3 if args.quick else 5)
     diffs = {name: float(np.max(np.abs(c_states[:, s] - py_states[:, s])) / np.max(np.abs(py_states[:, s])))
              for name, s in PARTS.items()}
@@ -212,6 +252,8 @@ def main(argv: list[str] | None = None) -> int:
         "loop_over_ceiling": side["loop_over_ceiling"], "ceiling_vs_loop_max_rel": ceiling_loop.agreement(ceiling_loop.flight()),
         **sweeps,
         "sweep_speedup": sweeps["batched_flights_per_s"] / sweeps["per_flight_flights_per_s"],
+        **est_sweep,
+        "estimate_sweep_speedup": est_sweep["estimate_batched_flights_per_s"] / est_sweep["estimate_per_flight_flights_per_s"],
         **setup, "load_average_1min_end": os.getloadavg()[0],
     }
     print(C.table(f"Closed loop, one flight of {SCENE} with {LAW!r} ({DURATION:g} s at 10 Hz; load {load:.1f} on {os.cpu_count()} cores)",
@@ -221,7 +263,9 @@ def main(argv: list[str] | None = None) -> int:
                     1e6 / est["truth_loops_per_s"]],
                    ["Python, on the estimate, Python filter", est["estimate_loops_per_s"], 1e6 / est["estimate_loops_per_s"]],
                    ["Python, on the estimate, compiled filter", est["estimate_compiled_loops_per_s"],
-                    1e6 / est["estimate_compiled_loops_per_s"]]]))
+                    1e6 / est["estimate_compiled_loops_per_s"]],
+                   ["compiled (1 thread), on the estimate: sensors and filter in the loop", est["estimate_batched_loops_per_s"],
+                    1e6 / est["estimate_batched_loops_per_s"]]]))
     print(f"on the estimate, time in the filter (TickFeeder.advance): {100 * est['estimate_filter_share']:.0f} % "
           f"with the Python filter, {100 * est['estimate_compiled_filter_share']:.0f} % with the compiled one\n")
     print(f"compiled loop / ceiling (bench/ceiling_loop.py: the same flight fused, written only to be fast; alternating, "
@@ -233,6 +277,16 @@ def main(argv: list[str] | None = None) -> int:
                   ["path", "flights", "wall [s]", "flights/s"],
                   [["per-flight", sweeps["per_flight_flights"], sweeps["per_flight_wall_s"], sweeps["per_flight_flights_per_s"]],
                    ["batched", sweeps["batched_flights"], sweeps["batched_wall_s"], sweeps["batched_flights_per_s"]]]))
+    print(C.table(f"A sweep on the estimate (sweeps/compare-nav-hover.yaml, its law on the estimate) on {sweeps['sweep_workers']} "
+                  "local workers (wall time after start-up)", ["path", "flights", "wall [s]", "flights/s"],
+                  [["per-flight", est_sweep["estimate_per_flight_flights"], est_sweep["estimate_per_flight_wall_s"],
+                    est_sweep["estimate_per_flight_flights_per_s"]],
+                   [est_sweep["estimate_batched_path"], est_sweep["estimate_batched_flights"], est_sweep["estimate_batched_wall_s"],
+                    est_sweep["estimate_batched_flights_per_s"]]]))
+    print(f"on the estimate: loop speed-up {est['estimate_batched_loops_per_s'] / est['estimate_compiled_loops_per_s']:.0f}x "
+          f"over the Python loop with the compiled filter, sweep speed-up {data['estimate_sweep_speedup']:.0f}x; summaries "
+          f"of the same {est_sweep['estimate_per_flight_flights']} flights on both paths "
+          f"{'print alike' if est_sweep['estimate_summary_equal'] else 'DIFFER'}")
     print(f"batched, 1 worker in this process: {sweeps['batched_1_worker_wall_s']:.2f} s wall, "
           f"{sweeps['batched_1_worker_cpu_s']:.2f} s CPU for {sweeps['batched_flights']} flights "
           "(CPU time does not depend on other load; on 2 idle cores the 2-worker wall is about half of it)")

@@ -17,6 +17,11 @@ The kernels sum in another order than numpy's BLAS products, so the filter agree
 one to rounding, not to the bit (test/estimation/test_compiled_filter.py: after 300 random steps the
 largest relative difference is 1.5e-12, in the gyro bias; the test allows 1e-9). Without numba the kernels run as
 plain Python (the same arithmetic, slowly).
+
+For loops compiled whole (the batched sweep core, :mod:`lander_tools.sweep.batched_kernel`) the
+filter's every step is a kernel too: :func:`nav_propagate` and the ``nav_update_*`` functions work on
+a packed state ``x`` and ``P`` (:func:`pack_filter`) with the nominal-state arithmetic of
+:class:`CompiledNavFilter` written element by element and its two covariance kernels.
 """
 from __future__ import annotations
 
@@ -29,7 +34,9 @@ from lander_sim.physics.rotation import quat_exp_step, quat_mult, quat_normalise
 
 from .ekf import DBA, DBG, DR, DTH, DV, N_ERR, NavFilter, NavState, Update, small_rotation
 
-__all__ = ["HAVE_NUMBA", "CompiledNavFilter", "compiled_copy", "covariance_propagate", "sequential_update"]
+__all__ = ["HAVE_NUMBA", "N_ERR", "N_X", "CompiledNavFilter", "compiled_copy", "covariance_propagate", "nav_propagate",
+           "nav_update_altimeter", "nav_update_doppler", "nav_update_ground_fix", "nav_update_star_tracker",
+           "pack_filter", "sequential_update"]
 
 
 @njit(cache=True)
@@ -139,3 +146,211 @@ def compiled_copy(filt: NavFilter) -> CompiledNavFilter:
     assert state.P.shape == (N_ERR, N_ERR)
     return CompiledNavFilter(state, filt.noise, gm=filt.gm, planet_radius=filt.planet_radius,
                              rejected=dict(filt.rejected))
+
+
+# --- the whole filter as kernels, for compiled loops -------------------------------------------
+#
+# The filter's state packed as ``x`` (16): ``r_W`` (3), ``v_W`` (3), ``q`` (4), ``b_g`` (3), ``b_a``
+# (3), with ``P`` (15 x 15) beside it; the same steps as :class:`CompiledNavFilter` (its nominal
+# arithmetic element by element, its covariance steps the kernels above), so a compiled loop that
+# flies many flights keeps the filter inside it. Each returns False where the filter would refuse
+# its input (:class:`~.ekf.EstimationError`: not finite, a noise not > 0, a quaternion not unit) or
+# not use it (the altimeter's predicted beam missing the planet), the state then unchanged.
+
+#: Slots of the packed state ``x``.
+X_R, X_V, X_Q, X_BG, X_BA = 0, 3, 6, 10, 13
+N_X = 16
+
+
+@njit(cache=True)
+def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
+    """``a x b``, as :func:`lander_sim.physics.rotation.quat_mult`."""
+    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+            a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
+            a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
+            a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
+
+
+@njit(cache=True)
+def _rot(x, R):  # pragma: no cover - compiled
+    """World-to-body ``R(q)`` of the state's quaternion (eq 13) into ``R``."""
+    s, a, b, c = x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3]
+    R[0, 0] = s * s + a * a - b * b - c * c
+    R[0, 1] = 2.0 * (a * b + s * c)
+    R[0, 2] = 2.0 * (a * c - s * b)
+    R[1, 0] = 2.0 * (a * b - s * c)
+    R[1, 1] = s * s - a * a + b * b - c * c
+    R[1, 2] = 2.0 * (s * a + b * c)
+    R[2, 0] = 2.0 * (s * b + a * c)
+    R[2, 1] = 2.0 * (b * c - s * a)
+    R[2, 2] = s * s - a * a - b * b + c * c
+
+
+@njit(cache=True)
+def _set_q_normalised(x, q0, q1, q2, q3):  # pragma: no cover - compiled
+    n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3] = q0 / n, q1 / n, q2 / n, q3 / n
+
+
+@njit(cache=True)
+def nav_propagate(x, P, omega_m, f_m, dt, gm, qc):  # pragma: no cover - compiled
+    """:meth:`CompiledNavFilter.propagate` on ``x``, ``P`` (``gm`` [m^3/s^2], ``qc`` (12) the noise
+    densities squared)."""
+    for j in range(3):
+        if not (math.isfinite(omega_m[j]) and math.isfinite(f_m[j])):
+            return False
+    if not (math.isfinite(dt) and dt > 0.0):
+        return False
+    w = np.empty(3)
+    f = np.empty(3)
+    for j in range(3):
+        w[j] = omega_m[j] - x[X_BG + j]
+        f[j] = f_m[j] - x[X_BA + j]
+    R = np.empty((3, 3))
+    _rot(x, R)
+    C = np.ascontiguousarray(R.T)
+    r2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
+    c3 = r2 * math.sqrt(r2)
+    rn = math.sqrt(r2)
+    a = np.empty(3)
+    for i in range(3):
+        a[i] = (C[i, 0] * f[0] + C[i, 1] * f[1] + C[i, 2] * f[2]) + -gm * x[i] / c3
+    gg = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            gg[i, j] = gm * (3.0 * ((x[i] / rn) * (x[j] / rn)) - (1.0 if i == j else 0.0)) / c3
+    for j in range(3):
+        x[X_R + j] = x[X_R + j] + x[X_V + j] * dt + 0.5 * a[j] * dt * dt
+        x[X_V + j] = x[X_V + j] + a[j] * dt
+    # quat_exp_step, then normalised
+    wn = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    h = 0.5 * wn * dt
+    if wn * dt < 1e-8:
+        k = 0.5 * dt * (1.0 - h * h / 6.0)
+    else:
+        k = math.sin(h) / wn
+    q0, q1, q2, q3 = _qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], math.cos(h), k * w[0], k * w[1], k * w[2])
+    _set_q_normalised(x, q0, q1, q2, q3)
+    P[:, :] = covariance_propagate(P, C, f, w, gg, dt, qc)
+    return True
+
+
+@njit(cache=True)
+def _apply(x, P, H, y, sigma):  # pragma: no cover - compiled
+    """The scalar updates (:func:`sequential_update`) and the injection of ``dx`` into ``x``."""
+    m = y.shape[0]
+    for i in range(m):
+        if not (math.isfinite(y[i]) and math.isfinite(sigma[i]) and sigma[i] > 0.0):
+            return False
+    dx, Pn = sequential_update(P, H, y, sigma * sigma)
+    P[:, :] = Pn
+    for j in range(3):
+        x[X_R + j] = x[X_R + j] + dx[j]
+        x[X_V + j] = x[X_V + j] + dx[3 + j]
+    th0, th1, th2 = dx[6], dx[7], dx[8]
+    a = math.sqrt(th0 * th0 + th1 * th1 + th2 * th2)
+    if a < 1e-12:  # small_rotation's normalised first order
+        n = math.sqrt(1.0 + (0.5 * th0) * (0.5 * th0) + (0.5 * th1) * (0.5 * th1) + (0.5 * th2) * (0.5 * th2))
+        e0, e1, e2, e3 = 1.0 / n, 0.5 * th0 / n, 0.5 * th1 / n, 0.5 * th2 / n
+    else:
+        k = math.sin(0.5 * a) / a
+        e0, e1, e2, e3 = math.cos(0.5 * a), k * th0, k * th1, k * th2
+    q0, q1, q2, q3 = _qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], e0, e1, e2, e3)
+    _set_q_normalised(x, q0, q1, q2, q3)
+    for j in range(3):
+        x[X_BG + j] = x[X_BG + j] + dx[9 + j]
+        x[X_BA + j] = x[X_BA + j] + dx[12 + j]
+    return True
+
+
+@njit(cache=True)
+def nav_update_star_tracker(x, P, q_m, sigma):  # pragma: no cover - compiled
+    """:meth:`~.ekf.NavFilter.update_star_tracker`: ``y = 2 vec(q^* x q_m)`` (the shorter way), ``H = [0, 0, I, 0, 0]``."""
+    nq = math.sqrt(q_m[0] * q_m[0] + q_m[1] * q_m[1] + q_m[2] * q_m[2] + q_m[3] * q_m[3])
+    if not math.isfinite(nq) or abs(nq - 1.0) > 1e-6:
+        return False
+    d0, d1, d2, d3 = _qmul(x[X_Q], -x[X_Q + 1], -x[X_Q + 2], -x[X_Q + 3], q_m[0], q_m[1], q_m[2], q_m[3])
+    if d0 < 0.0:
+        d0, d1, d2, d3 = -d0, -d1, -d2, -d3
+    n = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+    k = 2.0 if n < 1e-15 else 2.0 * math.atan2(n, d0) / n
+    y = np.array([k * d1, k * d2, k * d3])
+    H = np.zeros((3, N_ERR))
+    for i in range(3):
+        H[i, 6 + i] = 1.0
+    return _apply(x, P, H, y, sigma[0:3].copy())
+
+
+@njit(cache=True)
+def nav_update_altimeter(x, P, rho_m, sigma, beam_B, planet_radius):  # pragma: no cover - compiled
+    """:meth:`~.ekf.NavFilter.update_altimeter` (slant range along ``beam_B`` to the sphere of ``planet_radius``)."""
+    R = np.empty((3, 3))
+    _rot(x, R)
+    nb = math.sqrt(beam_B[0] * beam_B[0] + beam_B[1] * beam_B[1] + beam_B[2] * beam_B[2])
+    dB = np.array([beam_B[0] / nb, beam_B[1] / nb, beam_B[2] / nb])
+    d = np.empty(3)
+    for i in range(3):  # C d_B, C = R^T
+        d[i] = R[0, i] * dB[0] + R[1, i] * dB[1] + R[2, i] * dB[2]
+    rd = x[0] * d[0] + x[1] * d[1] + x[2] * d[2]
+    disc = rd * rd - ((x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - planet_radius * planet_radius)
+    if not (math.isfinite(rho_m) and math.isfinite(sigma) and sigma > 0.0):
+        return False
+    if disc < 0.0:
+        return False
+    s = -rd - math.sqrt(disc)
+    if s < 0.0:
+        return False
+    p = np.empty(3)
+    for j in range(3):
+        p[j] = x[j] + s * d[j]
+    pd = p[0] * d[0] + p[1] * d[1] + p[2] * d[2]
+    H = np.zeros((1, N_ERR))
+    pc = np.empty(3)  # p^T C
+    for j in range(3):
+        pc[j] = p[0] * R[j, 0] + p[1] * R[j, 1] + p[2] * R[j, 2]
+    # (p^T C) [d_B x]: column j of [d_B x] is d_B x e_j
+    sk = (pc[1] * dB[2] - pc[2] * dB[1], pc[2] * dB[0] - pc[0] * dB[2], pc[0] * dB[1] - pc[1] * dB[0])
+    for j in range(3):
+        H[0, j] = -p[j] / pd
+        H[0, 6 + j] = s * sk[j] / pd
+    return _apply(x, P, H, np.array([rho_m - s]), np.array([sigma]))
+
+
+@njit(cache=True)
+def nav_update_doppler(x, P, v_m, sigma):  # pragma: no cover - compiled
+    """:meth:`~.ekf.NavFilter.update_doppler`: ``z = R v``, ``H_v = R``, ``H_th = [(R v) x]``."""
+    R = np.empty((3, 3))
+    _rot(x, R)
+    vb = np.empty(3)
+    for i in range(3):
+        vb[i] = R[i, 0] * x[X_V] + R[i, 1] * x[X_V + 1] + R[i, 2] * x[X_V + 2]
+    H = np.zeros((3, N_ERR))
+    for i in range(3):
+        for j in range(3):
+            H[i, 3 + j] = R[i, j]
+    H[0, 7], H[0, 8] = -vb[2], vb[1]
+    H[1, 6], H[1, 8] = vb[2], -vb[0]
+    H[2, 6], H[2, 7] = -vb[1], vb[0]
+    y = np.array([v_m[0] - vb[0], v_m[1] - vb[1], v_m[2] - vb[2]])
+    return _apply(x, P, H, y, sigma[0:3].copy())
+
+
+@njit(cache=True)
+def nav_update_ground_fix(x, P, z, sigma):  # pragma: no cover - compiled
+    """:meth:`~.ekf.NavFilter.update_ground_fix`: ``H = [I, 0, ...]``, ``[0, I, 0, ...]``."""
+    H = np.zeros((6, N_ERR))
+    y = np.empty(6)
+    for i in range(6):
+        H[i, i] = 1.0
+        y[i] = z[i] - x[i]
+    return _apply(x, P, H, y, sigma[0:6].copy())
+
+
+def pack_filter(filt: NavFilter) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(x, P, qc)`` of ``filt`` for the kernels above: its packed state, covariance and the IMU's
+    noise densities squared (the ``qc`` of :meth:`CompiledNavFilter.propagate`)."""
+    s = filt.state
+    x = np.concatenate((s.r_W, s.v_W, s.q, s.b_g, s.b_a)).astype(float)
+    n = filt.noise
+    qc = np.repeat([n.gyro_noise_density**2, n.accel_noise_density**2, n.gyro_bias_walk**2, n.accel_bias_walk**2], 3)
+    return x, np.array(s.P, float), qc

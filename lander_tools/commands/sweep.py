@@ -38,6 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
         help="run on Dask distributed: a LocalCluster, or the scheduler at ADDRESS (tcp://host:8786)",
     )
+    parser.add_argument("--path", choices=("auto", "batched", "per-flight"), default="auto",
+                        help="batched (compiled core) or per-flight; default: batched when every law can fly on it")
     parser.add_argument("--out", default=None, metavar="DIR", help=f"output folder (default {DEFAULT_OUT}/<spec name>, in the current folder)")
     parser.add_argument("--json", action="store_true", help="print the summary (or the replayed metrics) as JSON")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -105,11 +107,17 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(output.jsonable(replayed), indent=1) if args.json else "\n".join(_fmt_row(r) for r in replayed))
         return 0
 
+    if args.path == "batched":
+        from lander_tools.sweep.batched import unsupported_reason
+
+        why = unsupported_reason(spec)
+        if why is not None:
+            return _fail(f"--path batched: the batched core cannot fly this sweep: {why}")
     if args.dask is not None:
         address = None if args.dask == "local" else args.dask
-        result = run_dask(spec, address=address, workers=args.workers, progress=args.progress)
+        result = run_dask(spec, address=address, workers=args.workers, progress=args.progress, path=args.path)
     else:
-        result = run_local(spec, workers=args.workers, progress=args.progress)
+        result = run_local(spec, workers=args.workers, progress=args.progress, path=args.path)
 
     rows = result.rows
     sums = summary.summarise(rows, spec.metrics, acceptance=spec.acceptance)

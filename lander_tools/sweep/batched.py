@@ -26,6 +26,12 @@ mass and inertia times their scales, thrust ``-d_i (T_i s_i)`` per thruster and 
 process of the case's own seed); ``test_batched.py`` holds them bit-identical to the Simulation's.
 The flight's Simulation is then built only if it is needed (a touchdown to hand back).
 
+**On the estimate** (a law with ``navigation: estimate``): each flight's sensors and filter are set
+up as :func:`~.flight.navigator` sets them up (:func:`pack_navigation`: the flight's own sensors
+switched on, their generators drawing the normals the flight's samples take, the filter started from
+the nominal scene's model), and fly inside the compiled loop; flights on the estimate go through it
+:data:`NAV_CHUNK` at a time (the normals are about 150 B a step a flight).
+
 Memory is bounded by flying in chunks of ``chunk`` flights.
 """
 from __future__ import annotations
@@ -51,10 +57,14 @@ from lander_tools.sweep.flight import (
 from lander_tools.sweep.metrics import Samples, altitude_and_tilt
 from lander_tools.sweep.spec import SweepSpec
 
-__all__ = ["DEFAULT_CHUNK", "chunks", "fly_chunk", "fly_compiled", "laws_of", "unsupported_reason"]
+__all__ = ["DEFAULT_CHUNK", "NAV_CHUNK", "chunks", "fly_chunk", "fly_compiled", "laws_of", "navigation_unsupported",
+           "navigation_row", "pack_navigation", "path_detail", "stack_navigation",
+           "unsupported_reason"]
 
 #: Flights per chunk: about 50 kB each for a 60 s flight at 10 Hz (samples, gust normals, Simulation).
 DEFAULT_CHUNK = 1000
+#: Flights per compiled call on the estimate: each carries its sensors' normals (~150 B a step).
+NAV_CHUNK = 50
 
 
 def laws_of(spec: SweepSpec) -> list[Any] | None:
@@ -82,11 +92,38 @@ def unsupported_reason(spec: SweepSpec) -> str | None:
     if spec.end.hover_hold > 0:
         return "end.hover_hold: the compiled loop has no hover-hold stop"
     for ci, choice in enumerate(spec.controllers):
-        if choice.navigation != "truth":
-            return f"controller {choice.label!r} flies on the estimate (the compiled loop has no navigation filter)"
         if compiled_form(case_controller(spec, ci, scene.vehicle)) is None:
             return f"controller {choice.label!r} has no compiled form"
+        if choice.navigation == "estimate":
+            why = navigation_unsupported(scene)
+            if why is not None:
+                return f"controller {choice.label!r} flies on the estimate: {why}"
     return None
+
+
+def navigation_unsupported(scene: Any) -> str | None:
+    """Why the compiled loop cannot fly the sensors and filter of ``scene`` (None if it can): it
+    needs what :class:`~lander_autopilot.estimation.onboard.Onboard` needs (an IMU sampling every
+    step, inverse-square gravity; the per-flight path reports their absence as the error it is)
+    and a quaternion scene (the sensors read the attitude as a quaternion)."""
+    sensors = scene.sensors
+    if sensors is None or "imu" not in sensors.sections:
+        return f"scene {scene.name!r} has no sensors.imu"
+    g = scene.models.get("gravity")
+    if g is None or g.kind != "inverse-square":
+        return f"scene {scene.name!r}: the filter needs inverse-square gravity"
+    if float(sensors.sections["imu"]["rate"]) * scene.dt < 1.0 - 1e-9:
+        return f"scene {scene.name!r}: sensors.imu.rate must sample every step"
+    if scene.attitude != "quaternion":
+        return f"scene {scene.name!r} is not a quaternion scene"
+    return None
+
+
+def path_detail(spec: SweepSpec) -> str:
+    """What the batched path flies besides the law: the sensors and filter when a law flies on the estimate."""
+    if any(c.navigation == "estimate" for c in spec.controllers):
+        return "sensors and navigation filter compiled in the loop"
+    return ""
 
 
 @dataclass
@@ -102,13 +139,20 @@ class FlightSetup:
     demand: tuple[float, float, float]  # before [m], after [m], step time [s]
     spec: Any = None
     values: dict[str, Any] | None = None
+    scene: Any = None
+
+    def flown_scene(self) -> Any:
+        """The flight's scene (:func:`~.case_scene.flown_scene`, built once)."""
+        if self.scene is None:
+            self.scene = self.sim.scene if self.sim is not None else flown_scene(self.spec, self.case)
+        return self.scene
 
     def simulation(self) -> Any:
         """The flight's Simulation (built now from its scene if the fast set-up skipped it)."""
         if self.sim is None:
             from lander_sim.simulation import Simulation
 
-            self.sim = Simulation(flown_scene(self.spec, self.case))
+            self.sim = Simulation(self.flown_scene())
         return self.sim
 
 
@@ -328,6 +372,49 @@ def pack_flights(flights: list[FlightSetup], n_steps: int, tpl: SetupTemplate | 
     return a
 
 
+def pack_navigation(spec: SweepSpec, flights: list[FlightSetup], y0: np.ndarray, n_steps: int, dt: float) -> dict[str, np.ndarray]:
+    """The :data:`~.batched_kernel.NAV_KEYS` arrays over ``flights`` (initial states ``y0``), as
+    :func:`~.flight.navigator` sets a flight on the estimate up: the flight's own sensors (its scene's
+    ``sensors``, seeded by its sensor seed, with its sensor dispersions) and the filter modelling the
+    nominal scene's sensors (:func:`navigation_row`)."""
+    scene0 = nominal_scene(spec)
+    rows = []
+    for fl, y in zip(flights, y0):
+        sensors = fl.flown_scene().sensors
+        rows.append(navigation_row(scene0, sensors, scene0.sensors, y, n_steps, dt))
+    return stack_navigation(rows)
+
+
+def navigation_row(scene: Any, sensors: Any, model: Any, y0: np.ndarray, n_steps: int, dt: float) -> tuple[np.ndarray, ...]:
+    """One flight's :data:`~.batched_kernel.NAV_KEYS` arrays, as :class:`~lander_autopilot.estimation.
+    onboard.Onboard` starts them: ``sensors`` (seeded) switched on (:class:`~lander_sim.sensors.suite.
+    SensorSuite`; its generators then draw the normals of ``n_steps`` steps of ``dt`` [s]), and the
+    filter modelling ``model``, started at the truth ``y0`` plus the error drawn from its ``P0`` with
+    the initial-error generator of the sensors' seed; ``scene``'s inverse-square gravity."""
+    from lander_autopilot.estimation.compiled import pack_filter
+    from lander_autopilot.estimation.flights import INITIAL_SIGMA, initial_covariance, initial_error_rng, start_filter
+    from lander_sim.sensors.compiled import pack_suite
+    from lander_sim.sensors.suite import SensorSuite
+
+    g = scene.models.get("gravity")
+    gm, radius = float(g.gm), float(g.radius)
+    sp, bias, w, off = pack_suite(SensorSuite(sensors), n_steps, dt, radius, gm)
+    filt = start_filter(model, y0[0:3].copy(), y0[3:6].copy(), y0[6:10].copy(), 0.0,
+                        initial_covariance(model, INITIAL_SIGMA), initial_error_rng(sensors.seed), gm, radius)
+    return (sp, bias, w, off, *pack_filter(filt))
+
+
+def stack_navigation(rows: list[tuple[np.ndarray, ...]]) -> dict[str, np.ndarray]:
+    """:func:`navigation_row` rows as arrays over flights (the normals padded to the longest)."""
+    w_all = np.zeros((len(rows), max(r[2].size for r in rows)))
+    for f, r in enumerate(rows):
+        w_all[f, :r[2].size] = r[2]
+    cols = list(zip(*rows))
+    return {"nav_sp": np.array(cols[0]), "nav_bias": np.array(cols[1]), "nav_w": w_all,
+            "nav_off": np.array(cols[3], dtype=np.int64), "nav_x0": np.array(cols[4]), "nav_P0": np.array(cols[5]),
+            "nav_qc": np.array(cols[6])}
+
+
 def _finish_touchdown(fl: FlightSetup, out: dict[str, np.ndarray], f: int) -> tuple[float, dict[str, Any], float, float, float]:
     """Hand the touchdown step to the flight's Simulation: ``(speed, figures, altitude error, tilt, fuel)``
     of the interpolated state, as the per-flight loop sees it."""
@@ -350,6 +437,9 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
     laws = laws if laws is not None else laws_of(spec)
     if laws is None:
         raise ValueError("fly_chunk: a controller of the spec has no compiled form (use the per-flight path)")
+    navigating = [c.navigation == "estimate" for c in spec.controllers]
+    if any(navigating) and len(indices) > NAV_CHUNK:  # the sensors' normals: about 150 B a step a flight
+        return [row for part in chunks(indices, NAV_CHUNK) for row in fly_chunk(spec, part, laws, parallel, fast_setup)]
     scene0 = nominal_scene(spec)
     n_sub, period = control_period(spec, scene0.dt)
     n_ctrl = int(math.floor(spec.end.duration / period + 1e-9))
@@ -379,9 +469,11 @@ def fly_chunk(spec: SweepSpec, indices: Sequence[int], laws: list[Any] | None = 
         else:
             sim0 = flights[0].sim
             stop, dt = (sim0.ground.contact_radius if sim0.ground is not None else 0.0), sim0.dt
+        if any(navigating):
+            inputs.update(pack_navigation(spec, flights, inputs["y0"], n_ctrl * n_sub, dt))
         for ci, law in enumerate(laws):
             params, K = law.pack()
-            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, dt, stop, parallel)
+            out = bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, dt, stop, parallel, navigation=navigating[ci])
             for f, fl in enumerate(flights):
                 rows.append(_row(spec, ci, fl, out, f, period))
     for i in broken:
@@ -427,14 +519,19 @@ def chunks(indices: Sequence[int], size: int) -> Iterator[list[int]]:
 
 
 def fly_compiled(sim: Any, law: Any, demand_altitude: float, duration: float, n_sub: int = 1, copies: int = 1,
-                 record_states: bool = False, parallel: bool = False) -> dict[str, np.ndarray]:
+                 record_states: bool = False, parallel: bool = False, navigation: bool = False) -> dict[str, np.ndarray]:
     """The compiled closed loop of one flight: ``sim``'s scene from its current start, the law
     ``law`` (:class:`~lander_autopilot.controllers.compiled.CompiledLaw`) at a constant demand
-    altitude [m], every ``n_sub`` physics steps, for ``duration`` [s]. ``copies`` flies the same
-    flight that many times in one call (for timing). Returns :func:`~.batched_kernel.fly_flights`'s arrays."""
+    altitude [m], every ``n_sub`` physics steps, for ``duration`` [s]; ``navigation``: on the
+    estimate of the scene's sensors (seeded as the scene says) and the filter modelling them.
+    ``copies`` flies the same flight that many times in one call (for timing). Returns
+    :func:`~.batched_kernel.fly_flights`'s arrays."""
     period = n_sub * sim.dt
     n_ctrl = int(math.floor(duration / period + 1e-9))
     inputs = pack_flights([FlightSetup(-1, FlightCase(-1, 0), sim, (demand_altitude, demand_altitude, 0.0))] * copies, n_ctrl * n_sub)
+    if navigation:
+        sensors = sim.scene.sensors
+        inputs.update(stack_navigation([navigation_row(sim.scene, sensors, sensors, sim.y, n_ctrl * n_sub, sim.dt)] * copies))
     params, K = law.pack()
     stop = sim.ground.contact_radius if sim.ground is not None else 0.0
-    return bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, sim.dt, stop, parallel, record_states)
+    return bk.fly_flights(inputs, params, K, n_ctrl, n_sub, period, sim.dt, stop, parallel, record_states, navigation)

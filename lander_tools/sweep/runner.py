@@ -39,7 +39,8 @@ class SweepResult:
     wall_time: float
     engine: str
     workers: int
-    #: ``batched`` (compiled core, chunks of flights) or ``per-flight``, and why not batched.
+    #: ``batched`` (compiled core, chunks of flights) or ``per-flight``; and why not batched, or on the
+    #: batched path what it flies besides the laws (the sensors and the filter of laws on the estimate).
     path: str = "per-flight"
     path_reason: str = ""
 
@@ -60,19 +61,20 @@ def _default_task() -> Task:
 
 
 def choose_path(spec: SweepSpec, path: str, task: Task | None) -> tuple[str, str]:
-    """``(path, reason)``: ``batched`` if allowed and possible, else ``per-flight`` and why."""
+    """``(path, reason)``: ``batched`` if allowed and possible (the reason then says what it flies
+    besides the laws, :func:`~lander_tools.sweep.batched.path_detail`), else ``per-flight`` and why."""
     if path not in ("auto", "batched", "per-flight"):
         raise ValueError(f"path must be 'auto', 'batched' or 'per-flight', got {path!r}")
     if path == "per-flight":
         return "per-flight", "asked for"
     if task is not None:
         return "per-flight", "custom task"
-    from lander_tools.sweep.batched import unsupported_reason
+    from lander_tools.sweep.batched import path_detail, unsupported_reason
 
     why = unsupported_reason(spec)
     if why is not None and path == "batched":
         raise ValueError(f"the batched core cannot fly this sweep: {why}")
-    return ("per-flight", why) if why is not None else ("batched", "")
+    return ("per-flight", why) if why is not None else ("batched", path_detail(spec))
 
 
 def _chunk_task(spec: SweepSpec, indices: list[int]) -> Any:
@@ -143,7 +145,7 @@ def run_local(
     n = workers or os.cpu_count() or 1
     t0 = time.perf_counter()
     if chosen == "batched":
-        return _run_local_batched(spec, n, indices, progress, chunk)
+        return _run_local_batched(spec, n, indices, progress, chunk, why)
     if n == 1:
         rows = _collect((fn(spec, c, i) for c, i in work), len(work), progress)
     else:
@@ -154,7 +156,7 @@ def run_local(
 
 
 def _run_local_batched(spec: SweepSpec, n: int, indices: Sequence[int] | None, progress: bool | None,
-                       chunk: int | None) -> SweepResult:
+                       chunk: int | None, detail: str = "") -> SweepResult:
     """The batched path on ``n`` local processes: each flies whole chunks, set-up and compiled loop
     (one thread each); ``n = 1`` flies them in this process. Set-up (drawing the case, building its
     scene and Simulation) is Python, so processes rather than threads share it out. The wall time
@@ -189,7 +191,7 @@ def _run_local_batched(spec: SweepSpec, n: int, indices: Sequence[int] | None, p
                     table.extend(got)
                     advance(got)
     rows = table.sorted()
-    return SweepResult(rows, time.perf_counter() - t0, "local", n, "batched", "")
+    return SweepResult(rows, time.perf_counter() - t0, "local", n, "batched", detail)
 
 
 def run_dask(

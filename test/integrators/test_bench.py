@@ -35,7 +35,11 @@ def test_closed_loop_benchmark_quick_writes_both_loop_and_sweep_rates(tmp_path: 
     out = tmp_path / "closed_loop.json"
     assert bench.run(argparse.Namespace(name="closed_loop", json=str(out), out=None, quick=True)) == 0
     data = json.loads(out.read_text())
-    for key in ("python_loops_per_s", "compiled_loops_per_s", "per_flight_flights_per_s", "batched_flights_per_s"):
+    for key in ("python_loops_per_s", "compiled_loops_per_s", "per_flight_flights_per_s", "batched_flights_per_s",
+                "estimate_batched_loops_per_s", "estimate_per_flight_flights_per_s", "estimate_batched_flights_per_s"):
         assert data[key] > 0, key
     assert max(data["trajectory_rel_diff"].values()) <= 1e-9
     assert data["summary_equal"]
+    # on the estimate too: the batched path (sensors and filter in the loop) and the per-flight one agree
+    assert data["estimate_batched_path"] == "batched (sensors and navigation filter compiled in the loop)"
+    assert data["estimate_summary_equal"]

@@ -73,9 +73,9 @@ def test_flying_on_the_estimate_needs_a_scene_with_the_imu():
     preflight(spec_of())  # the scene with sensors is fine
 
 
-def test_the_estimate_flies_per_flight_and_not_through_ros(tmp_path):
+def test_the_landing_law_on_the_estimate_flies_per_flight_and_not_through_ros(tmp_path):
     path, why = choose_path(spec_of(), "auto", None)
-    assert path == "per-flight" and why  # no compiled loop flies the filter; numba's absence is a reason too
+    assert path == "per-flight" and why  # the landing law has no compiled form; numba's absence is a reason too
     from lander_tools.sweep.ros_path import plan_for_case
 
     with pytest.raises(NotRepresentable, match="flies on the estimate"):

@@ -10,9 +10,9 @@ from typing import Any, TextIO
 
 import yaml
 
-from lander_tools import child
 from lander_autopilot.ros.config import dump_controller_params, parse_controller_params, scene_autopilot
 from lander_sim.scenes import load_scene
+from lander_tools import child
 from lander_tools.fly.checks import read_params_file
 from lander_tools.fly.navigation import estimate_params
 from lander_tools.fly.plan import AUTOPILOT_NODE, ESTIMATOR_NODE, SIM_NODE, FlightPlan, pilot_mode

@@ -44,7 +44,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -288,7 +288,7 @@ def _controller(link: Any) -> str:
 
 def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[str],
                   sim_matched: Callable[[], dict[str, int]], stop: threading.Event,
-                  estimates: list[str] = ()) -> None:
+                  estimates: Sequence[str] = ()) -> None:
     """Step 2: spin until both ends are matched; TimeoutError naming what is still waiting.
 
     The recorder's readers: every publisher the graph shows on each recorded topic (the sim's

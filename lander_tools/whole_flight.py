@@ -44,7 +44,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -146,13 +146,10 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             return parse_matched(link.call(Trigger, "/lander/subscribers", Trigger.Request()).message)
 
         config.meta.update(_flight_meta(link))
-        estimator = ESTIMATOR_NODE in link.node_names()
-        if estimator:
-            # the estimate beside the truth, as `lander fly --estimate` records it; the estimator's
-            # initial-error seed for the re-run of `lander analyse` (-1: the scene's sensors.seed)
-            if not args.topics and not args.all:
-                config.topics = tuple(dict.fromkeys((*config.topics, *ESTIMATE_TOPICS)))
-            config.meta["seed"] = str(link.get_parameters(ESTIMATOR_NODE, ["seed"]).get("seed"))
+        if not args.topics and not args.all:
+            # an estimator's outputs beside the truth, as `lander fly --estimate` records them (recorded
+            # only if published, as the sensors' topics)
+            config.topics = tuple(dict.fromkeys((*config.topics, *ESTIMATE_TOPICS)))
         if config.meta["lockstep"] == "True" and config.meta["controller"] == "none":
             # a lockstep sim waits for an autopilot: give it the discovery time the simulator had
             try:
@@ -175,8 +172,14 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             sim_topics = [t for t in (*COUNTED_TOPICS, *(t for t in SENSOR_TOPICS if t in before)) if rec.wanted(t)]
             need = {t: before.get(t, 0) + 1 for t in sim_topics}
             need["/lander/events"] = before.get("/lander/events", 0) + 1 + ("/lander/events" in sim_topics)
-            estimates = [t for t in ESTIMATE_TOPICS if estimator and rec.wanted(t)]
-            _wait_matched(link, rec, need, sim_topics, sim_matched, stop, estimates)
+            _wait_matched(link, rec, need, sim_topics, sim_matched, stop)
+            # by now every reader of the state the sim has matched is known by its node's name: an
+            # estimator node (it reads the state) is in the graph if it is in the flight
+            estimates: list[str] = []
+            if ESTIMATOR_NODE in link.node_names():
+                estimates = [t for t in ESTIMATE_TOPICS if rec.wanted(t)]
+                # its initial-error seed, for the re-run of `lander analyse` (-1: the scene's sensors.seed)
+                rec.writer.set_custom_data("seed", str(link.get_parameters(ESTIMATOR_NODE, ["seed"]).get("seed")))
             # /lander/events has other publishers (the autopilot): the sim's count is then a floor
             shared = {t for t in sim_topics if len(link.node.get_publishers_info_by_topic(t)) > 1}
 
@@ -287,13 +290,12 @@ def _controller(link: Any) -> str:
 
 
 def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[str],
-                  sim_matched: Callable[[], dict[str, int]], stop: threading.Event,
-                  estimates: Sequence[str] = ()) -> None:
+                  sim_matched: Callable[[], dict[str, int]], stop: threading.Event) -> None:
     """Step 2: spin until both ends are matched; TimeoutError naming what is still waiting.
 
     The recorder's readers: every publisher the graph shows on each recorded topic (the sim's
-    topics and the recorded ``estimates`` at least one), and with an autopilot node its throttles
-    and status. The other ends: the sim's writers (``need``, from ``/lander/subscribers``), the
+    topics at least one), with an autopilot node its throttles and status, with an estimator node
+    its recorded estimate topics. The other ends: the sim's writers (``need``, from ``/lander/subscribers``), the
     autopilot's state reader (``/autopilot/matched``: of the truth or of the estimate, whichever it
     flies on) and the estimator's state and sensor readers (``/lander_estimator/matched``), so that
     state 1 of the reset and its readings reach them too."""
@@ -306,7 +308,10 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
     waiting: list[str] = []
     while True:
         autopilot = AUTOPILOT_NODE in link.node_names()
-        floor = dict.fromkeys((*sim_topics, *estimates), 1)
+        estimator = ESTIMATOR_NODE in link.node_names()
+        floor = dict.fromkeys(sim_topics, 1)
+        if estimator:
+            floor.update({t: 1 for t in ESTIMATE_TOPICS if rec.wanted(t)})
         if autopilot:
             floor.update({t: 1 for t in ("/lander/throttle", "/autopilot/status") if rec.wanted(t)})
         topics = set(floor) | {t for t, _ in link.node.get_topic_names_and_types() if rec.wanted(t)}
@@ -325,7 +330,7 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
             answer = parse_matched(link.call(Trigger, "/autopilot/matched", Trigger.Request()).message)
             # one state reader: sub:/lander/state, or sub:/lander/estimate/state flying on the estimate
             waiting += [f"autopilot <- {k[4:]}" for k, n in answer.items() if k.startswith("sub:") and n < 1]
-        if not waiting and ESTIMATOR_NODE in link.node_names():
+        if not waiting and estimator:
             answer = parse_matched(link.call(Trigger, f"{ESTIMATOR_NODE}/matched", Trigger.Request()).message)
             waiting += [f"estimator <- {k[4:]}" for k, n in answer.items() if k.startswith("sub:") and n < 1]
         if not waiting:

@@ -9,6 +9,7 @@ import uuid
 from pathlib import Path
 
 import psutil
+
 import rosutil
 
 HERE = Path(__file__).resolve().parent
@@ -24,8 +25,9 @@ def _shared_memory_files(pid: int) -> set[str]:
 
 def test_this_files_participants_run_over_loopback_udp_alone(spawn_python, ros_node) -> None:
     assert {k: os.environ.get(k) for k in rosutil.LOOPBACK_UDP} == rosutil.LOOPBACK_UDP
-    from lander_interfaces import msg
     from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from lander_interfaces import msg
 
     prefix = f"/loopback_{uuid.uuid4().hex[:8]}"
     talker = spawn_python([str(HERE / "sample_node.py"), prefix], name="talker")

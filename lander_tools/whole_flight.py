@@ -23,9 +23,9 @@ starts one, but from outside:
 6. **record to the end**: at the simulator's ``FLIGHT_ENDED`` wait until the recorder holds as
    many messages as the simulator counted on each of its topics (and, with an estimator, one
    estimate per state on each estimate topic: the estimator restarts its filter at the reset's
-   state 1), close the bag and compare, exit 3 with a line per short topic. Without an end (no ``end_time`` / ``end_on`` on the sim and no
-   ``--duration``), record until Ctrl-C / SIGTERM or until the simulator leaves, and say that the
-   bag was not checked.
+   state 1), close the bag and compare, exit 3 with a line per short topic. Without an end (no
+   ``end_time`` / ``end_on`` on the sim and no ``--duration``), record until Ctrl-C / SIGTERM or
+   until the simulator leaves, and say that the bag was not checked.
 
 Exit status: 0 the bag holds the whole flight (or was stopped before an end, unchecked), 1 no
 flight / a flight this command must not restart / a refusal by the simulator, 2 bad options,
@@ -177,6 +177,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             # estimator node (it reads the state) is in the graph if it is in the flight
             estimates: list[str] = []
             if ESTIMATOR_NODE in link.node_names():
+                _wait_matched(link, rec, need, sim_topics, sim_matched, stop)  # its ends too, whenever it was seen
                 estimates = [t for t in ESTIMATE_TOPICS if rec.wanted(t)]
                 # its initial-error seed, for the re-run of `lander analyse` (-1: the scene's sensors.seed)
                 rec.writer.set_custom_data("seed", str(link.get_parameters(ESTIMATOR_NODE, ["seed"]).get("seed")))
@@ -295,8 +296,8 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
 
     The recorder's readers: every publisher the graph shows on each recorded topic (the sim's
     topics at least one), with an autopilot node its throttles and status, with an estimator node
-    its recorded estimate topics. The other ends: the sim's writers (``need``, from ``/lander/subscribers``), the
-    autopilot's state reader (``/autopilot/matched``: of the truth or of the estimate, whichever it
+    its recorded estimate topics. The other ends: the sim's writers (``need``, from
+    ``/lander/subscribers``), the autopilot's state reader (``/autopilot/matched``: of the truth or of the estimate, whichever it
     flies on) and the estimator's state and sensor readers (``/lander_estimator/matched``), so that
     state 1 of the reset and its readings reach them too."""
     from std_srvs.srv import Trigger

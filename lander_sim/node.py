@@ -19,18 +19,19 @@ as they fall due (``lander_sim.ros.sensor_out``).
 
 Whether a tick may run and what pause, resume, step and the end do is decided by the gate
 (``lander_sim.ros.gate``, plain Python): the node feeds it every event and does what it answers.
+What an instant publishes, and the count of each topic's messages that ``FLIGHT_ENDED`` carries,
+is :class:`lander_sim.ros.outputs.SimOutputs`'s: the node creates the publishers and says when.
 
 No physics and no control law here: messages, parameters, services and time are
 translated to and from the core (see docs/sim_node.md).
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped, TransformStamped, Vector3Stamped
+from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterNotDeclaredException
@@ -48,11 +49,7 @@ from lander_ros.delivery import (
     flush,
     run_node_process,
 )
-from lander_ros.flight_span import (
-    COUNTED_TOPICS,
-    FlightEnd,
-    parse_end_on,
-)
+from lander_ros.flight_span import FlightEnd, parse_end_on
 from lander_ros.params import check_overrides
 from lander_ros.strangers import STRANGER_KIND, InputGuard, with_message_info
 from lander_sim.errors import InputError
@@ -69,7 +66,7 @@ from lander_sim.ros.config import (
 )
 from lander_sim.ros.diagnostics import NodeHealth, diagnostics_array
 from lander_sim.ros.gate import Gate, GateSettings, Mode, Publish, TickOutcome
-from lander_sim.ros.markers import MarkerBuilder
+from lander_sim.ros.outputs import SimOutputs
 from lander_sim.ros.pacing import Pacer, steps_per_tick
 from lander_sim.ros.sensor_out import SensorOutputs
 from lander_sim.ros.services import SimServices
@@ -89,8 +86,6 @@ _INPUT_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE, histo
 _BUSY_SPIN_INTERVAL = 0.001
 #: Most executor passes in one drain (a flood of inputs must not stall the simulation).
 _MAX_DRAIN_PASSES = 50
-#: Wall period [s] of re-reading the subscriber counts of the optional outputs (odometry, pose, markers).
-_SUBSCRIBER_CHECK_PERIOD = 0.2
 #: Longest wall time the loop blocks in the executor while idle (paused / waiting), so diagnostics keep flowing.
 _IDLE_WAIT = 0.05
 
@@ -113,7 +108,6 @@ class SimNode(Node):
 
         self.health = NodeHealth()
         self._hold = CommandHold()  # the held throttle command and its age limit (command_timeout)
-        self._cache_parameters()
         #: Running, paused, held at pause_at, awaiting the lockstep answer or ended (lander_sim.ros.gate):
         #: the node feeds it every event and advances or publishes only as it answers.
         self.gate = Gate(self._gate_settings(), start_paused=bool(self._param("start_paused")))
@@ -123,29 +117,27 @@ class SimNode(Node):
         #: the reset it awaits (lander_tools.whole_flight).
         self.flight = 0
         self._callbacks = 0  # callbacks run so far (the drain loop watches it)
-        self._want_odom = self._want_pose = self._want_markers = False
-        self._state_subscribers = 0  # subscriptions matched by the state publisher (diagnostics)
-        self._next_sub_check = 0.0
-        self._last_marker_wall = -math.inf
         self._next_diag_wall = time.monotonic()
         self._stop_requested = False  # set by request_stop() (a signal handler): run() returns
-        #: Messages published per output topic since the last reset (reported by FLIGHT_ENDED).
-        self._counts = dict.fromkeys(COUNTED_TOPICS, 0)
         self._timeouts_at_reset = 0  # health.lockstep_timeouts at the flight's reset (FLIGHT_ENDED counts this flight's)
 
         self.sim: SimAdapter = self.load(self._param("scene"))
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer = Pacer(self._param("speed"), self._k * self.sim.dt)
 
-        self._pub_clock = self.create_publisher(Clock, "/clock", OUTPUT_QOS)
-        self._pub_state = self.create_publisher(LanderState, "/lander/state", OUTPUT_QOS)
-        self._pub_odom = self.create_publisher(Odometry, "/lander/odom", OUTPUT_QOS)
-        self._pub_pose = self.create_publisher(PoseStamped, "/lander/pose", OUTPUT_QOS)
-        self._pub_markers = self.create_publisher(MarkerArray, "/lander/markers", OUTPUT_QOS)
-        self._pub_events = self.create_publisher(FlightEvent, "/lander/events", QoSProfile(depth=1000))
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", OUTPUT_QOS)
-        self._tf = TransformBroadcaster(self) if TransformBroadcaster is not None else None
-        self._sensors = SensorOutputs(lambda cls, topic: self.create_publisher(cls, topic, OUTPUT_QOS))
+        def output(cls, topic: str):
+            return self.create_publisher(cls, topic, OUTPUT_QOS)
+
+        #: What goes out, filled and counted (lander_sim.ros.outputs): this node only creates the publishers.
+        self.out = SimOutputs(
+            clock=output(Clock, "/clock"), state=output(LanderState, "/lander/state"),
+            odom=output(Odometry, "/lander/odom"), pose=output(PoseStamped, "/lander/pose"),
+            markers=output(MarkerArray, "/lander/markers"),
+            events=self.create_publisher(FlightEvent, "/lander/events", QoSProfile(depth=1000)),
+            diagnostics=output(DiagnosticArray, "/diagnostics"),
+            tf=TransformBroadcaster(self) if TransformBroadcaster is not None else None,
+            sensors=SensorOutputs(output), trajectory_length=self._param("trajectory_length"))
+        self._cache_parameters()
         self._set_sensors()
 
         c = self._counted
@@ -161,14 +153,6 @@ class SimNode(Node):
         for srv_type, name, handler in self.service_handlers.table():
             self.create_service(srv_type, name, c(handler))
 
-        # Messages kept and refilled every tick: no per-tick construction of message objects.
-        self._clock_msg = Clock()
-        self._state_msg = LanderState()
-        self._odom_msg = Odometry()
-        self._pose_msg = PoseStamped()
-        self._tf_msg = TransformStamped()
-        self._apply_frames()
-        self._markers = MarkerBuilder(self._param("world_frame"), self._param("trajectory_length"))
         # Parameter changes are taken only now that everything they act on exists.
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
@@ -212,7 +196,7 @@ class SimNode(Node):
 
     def flush(self, timeout: float = FLUSH_TIMEOUT) -> bool:
         """Wait until the subscribers acknowledged every output published (before the process exits)."""
-        return flush(self._outputs, timeout)
+        return flush(self.out.publishers, timeout)
 
     def _serve(self, executor, wait: float) -> None:
         """One executor pass (blocking up to ``wait`` s), then drain whatever else is pending.
@@ -247,7 +231,7 @@ class SimNode(Node):
         if (now >= self._next_diag_wall and mode is not Mode.ENDED
                 and (mode is not Mode.NOT_STARTED or self._param("idle_diagnostics"))):
             self._publish_diagnostics(now)
-        if now >= self._next_sub_check:
+        if now >= self.out.next_subscriber_check:
             self.check_subscribers(now)
         poll = self.gate.poll(now, self.sim.t)
         if poll.timed_out:
@@ -275,8 +259,8 @@ class SimNode(Node):
         """
         self._check_staleness()
         w0 = time.perf_counter()
-        if self._sensors.on:  # one step at a time: the sensors sample the truth over each
-            self.sim.step_each(n_steps, self._sample_sensors)
+        if self.out.sensors.on:  # one step at a time: the sensors sample the truth over each
+            self.sim.step_each(n_steps, self.out.sensors_after_step)
         else:
             self.sim.step(n_steps)
         self.health.step_wall_s += time.perf_counter() - w0
@@ -289,24 +273,16 @@ class SimNode(Node):
             self._end_flight(str(self.gate.end_reason))
             return
         if outcome is TickOutcome.HOLD:
-            convert.fill_stamp(self._clock_msg.clock, self.sim.t)
-            self._pub_clock.publish(self._clock_msg)
-            self._counts["/clock"] += 1
+            self.out.clock(self.sim.t)
             self.publish_core_events()
             # Debug only: a launcher pauses here at every timeline action, so at info level it would flood the log.
             self.get_logger().debug(f"paused at t = {self.sim.t!r} s (pause_at); its state follows on resume")
             return
         self._publish_outputs()
 
-    def _sample_sensors(self, sim, y_before, dt: float) -> None:
-        self._sensors.after_step(sim, y_before, dt, self._counts, self._world_frame, self._body_frame)
-
     def _set_sensors(self) -> None:
         """The current scene's sensors at switch-on, their publishers, and the flight's counts from zero."""
-        self._sensors.set_scene(self.sim.scene.sensors, self.sim.seed)
-        self._outputs = (self._pub_clock, self._pub_state, self._pub_odom, self._pub_pose, self._pub_markers,
-                         self._pub_events, self._pub_diag, *self._sensors.publishers.values())
-        self._counts = dict.fromkeys(COUNTED_TOPICS + self._sensors.topics(), 0)
+        self.out.set_sensors(self.sim.scene.sensors, self.sim.seed)
 
     def _end_flight(self, reason: str) -> None:
         """Stop at the end instant (its state is out): a last /diagnostics, then FLIGHT_ENDED with the
@@ -314,9 +290,10 @@ class SimNode(Node):
         (lander_ros.flight_span), then nothing
         more until a reset; so a recording ends here whatever its launcher does next."""
         self._publish_diagnostics(time.monotonic())
-        self._counts["/lander/events"] += 1  # the FLIGHT_ENDED itself
-        end = FlightEnd(self.sim.t, reason, dict(self._counts), self.health.lockstep_timeouts - self._timeouts_at_reset)
-        self._counts["/lander/events"] -= 1  # _publish_event counts it again
+        counts = self.out.counts
+        counts["/lander/events"] += 1  # the FLIGHT_ENDED itself
+        end = FlightEnd(self.sim.t, reason, dict(counts), self.health.lockstep_timeouts - self._timeouts_at_reset)
+        counts["/lander/events"] -= 1  # _publish_event counts it again
         self._publish_event(FlightEvent.FLIGHT_ENDED, end.detail(), end.values())
         self.get_logger().debug(end.detail())
 
@@ -355,37 +332,18 @@ class SimNode(Node):
         ``clock=False``: /clock already shows this instant (a state held back at ``pause_at``).
         """
         snap = self.sim.readout()
-        counts = self._counts
+        out = self.out
         if clock:
-            convert.fill_stamp(self._clock_msg.clock, snap.t)
-            self._pub_clock.publish(self._clock_msg)
-            counts["/clock"] += 1
+            out.clock(snap.t)
         self._seq += 1
         if self._seq == 1:  # the flight's first instant, t = 0: the sensors' first samples
-            self._sensors.at_start(self.sim.sim, counts, self._world_frame, self._body_frame)
-        convert.fill_state(self._state_msg, self._seq, snap)
+            out.sensors_at_start(self.sim.sim)
+        out.fill_state(self._seq, snap)
         now = time.monotonic()
         self.health.state_published(self._seq, now)
-        self._pub_state.publish(self._state_msg)
-        counts["/lander/state"] += 1
+        out.publish_state()
         self.gate.published(self._seq, now)
-        if self._want_odom:
-            convert.fill_odometry(self._odom_msg, snap)
-            self._pub_odom.publish(self._odom_msg)
-            counts["/lander/odom"] += 1
-        if self._want_pose:
-            self._pose_msg.header.stamp = self._state_msg.header.stamp
-            convert.fill_pose(self._pose_msg.pose, snap)
-            self._pub_pose.publish(self._pose_msg)
-            counts["/lander/pose"] += 1
-        if self._tf is not None and self._publish_tf:
-            convert.fill_transform(self._tf_msg, snap)
-            self._tf.sendTransform(self._tf_msg)
-        self._markers.record(snap.r_W)
-        if self._want_markers and now - self._last_marker_wall >= self._marker_period:
-            self._last_marker_wall = now
-            self._pub_markers.publish(self._markers.build(snap, self.sim.vehicle))
-            counts["/lander/markers"] += 1
+        out.views(snap, self.sim.vehicle, now)
         self.publish_core_events()
 
     def publish_pending(self, what: Publish) -> None:
@@ -395,11 +353,7 @@ class SimNode(Node):
 
     def check_subscribers(self, now: float) -> None:
         """Re-read who listens to the optional outputs (a graph query per tick would cost ~7 us)."""
-        self._next_sub_check = now + _SUBSCRIBER_CHECK_PERIOD
-        self._state_subscribers = self._pub_state.get_subscription_count()
-        self._want_odom = self._pub_odom.get_subscription_count() > 0
-        self._want_pose = self._pub_pose.get_subscription_count() > 0
-        self._want_markers = self._pub_markers.get_subscription_count() > 0
+        self.out.check_subscribers(now)
 
     def publish_core_events(self) -> None:
         for event in self.sim.drain_events():
@@ -407,12 +361,7 @@ class SimNode(Node):
             self._publish_event(getattr(FlightEvent, name), detail, values, t=event.t)
 
     def _publish_event(self, kind: int, detail: str, values, t: float | None = None) -> None:
-        ev = FlightEvent()
-        ev.header.frame_id = self._param("world_frame")
-        convert.fill_stamp(ev.header.stamp, self.sim.t if t is None else t)
-        ev.kind, ev.detail, ev.values = int(kind), detail, [float(v) for v in values]
-        self._pub_events.publish(ev)
-        self._counts["/lander/events"] += 1
+        self.out.event(kind, detail, values, self.sim.t if t is None else t)
 
     def report_now(self) -> None:
         """A /diagnostics report now (the pause service: ``paused`` is news to the flight's watchers)."""
@@ -429,13 +378,12 @@ class SimNode(Node):
             "pacer_overruns": str(self.pacer.overruns),
             # Matched by this node's writer (not just seen in the graph): a start-up handshake
             # can wait for it, so the first state reaches everyone (test/reliability).
-            "state_subscribers": str(self._state_subscribers),
+            "state_subscribers": str(self.out.state_subscribers),
             # The mean wind in force [m/s, world frame], x y z: what a live view shows.
             "mean_wind_W": " ".join(repr(float(v)) for v in self.sim.mean_wind_W),
         }
-        self._pub_diag.publish(diagnostics_array(self.health, t=self.sim.t, name=f"{NODE_NAME}: simulation",
-                                                 hardware_id=self.sim.scene.name, extra=extra))
-        self._counts["/diagnostics"] += 1
+        self.out.diagnostics(diagnostics_array(self.health, t=self.sim.t, name=f"{NODE_NAME}: simulation",
+                                               hardware_id=self.sim.scene.name, extra=extra))
 
     # --- inputs ------------------------------------------------------------------------------
 
@@ -467,7 +415,7 @@ class SimNode(Node):
 
     def _on_wind(self, msg: Vector3Stamped) -> None:
         frame = msg.header.frame_id
-        if frame not in ("", self._world_frame):
+        if frame not in ("", self.out.world_frame):
             self.reject("wind.frame", f"header.frame_id {frame!r}: wind must be given in {self._param('world_frame')!r}")
             return
         try:
@@ -487,7 +435,7 @@ class SimNode(Node):
     def matched(self) -> dict[str, int]:
         """Subscriptions matched by each output's writer, and publishers matched by each input's
         reader as ``sub:TOPIC`` (lander_ros.flight_span.format_matched)."""
-        matched = {p.topic_name: p.get_subscription_count() for p in self._outputs}
+        matched = {p.topic_name: p.get_subscription_count() for p in self.out.publishers}
         matched.update({f"sub:{s.topic_name}": s.get_publisher_count() for s in self._inputs})
         return matched
 
@@ -499,10 +447,9 @@ class SimNode(Node):
     def _cache_parameters(self) -> None:
         """Parameters read every tick, as attributes (``get_parameter`` costs ~3 us a call, measured)."""
         self._hold.timeout = float(self._param("command_timeout"))
-        self._publish_tf = bool(self._param("publish_tf"))
-        self._marker_period = 1.0 / float(self._param("marker_rate"))
-        self._world_frame = str(self._param("world_frame"))
-        self._body_frame = str(self._param("body_frame"))
+        self.out.publish_tf = bool(self._param("publish_tf"))
+        self.out.marker_period = 1.0 / float(self._param("marker_rate"))
+        self.out.set_frames(str(self._param("world_frame")), str(self._param("body_frame")))
 
     def _gate_settings(self) -> GateSettings:
         """The parameters the gate reads (lockstep, pause_at, the end)."""
@@ -561,18 +508,6 @@ class SimNode(Node):
             self.pacer.set_speed(self._param("speed"))
         if "stabiliser" in names:
             self.apply_stabiliser(self.sim)
-        if names & {"world_frame", "body_frame"}:
-            self._apply_frames()
-            self._markers.frame_id = self._param("world_frame")
-
-    def _apply_frames(self) -> None:
-        world, body = self._param("world_frame"), self._param("body_frame")
-        self._state_msg.header.frame_id = world
-        self._pose_msg.header.frame_id = world
-        self._odom_msg.header.frame_id = world
-        self._odom_msg.child_frame_id = body
-        self._tf_msg.header.frame_id = world
-        self._tf_msg.child_frame_id = body
 
     def apply_stabiliser(self, sim: SimAdapter) -> None:
         choice = self._param("stabiliser")
@@ -607,7 +542,7 @@ class SimNode(Node):
         self._hold.clear()
         self._k = steps_per_tick(self.sim.dt, self._param("publish_rate"))
         self.pacer.set_period(self._k * self.sim.dt)
-        self._markers.clear_trajectory()
+        self.out.clear_trajectory()
         self.health.restart_window(self.sim.t)
         self.publish_pending(pending)
 

@@ -52,9 +52,9 @@ from typing import Any
 
 import numpy as np
 
-from lander_autopilot.estimation.consistency import anees, average_bounds
 from lander_autopilot.estimation.ekf import attitude_error
 from lander_sim.physics.rotation import quat_to_matrix
+from lander_tools.chi_square import ChiSquareSummary
 from lander_tools.estimate_nis import NisReport, NisUnavailable
 from lander_tools.estimate_nis import figure as nis_figure_of
 from lander_tools.estimate_nis import from_bag as nis_from_bag
@@ -164,39 +164,14 @@ def nees_series(e: np.ndarray, P: np.ndarray) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
-class NeesCheck:
-    """Time-averaged NEES of one block (module docstring): ``mean`` of ``samples`` values of
-    ``dof`` degrees of freedom, the interval for that many independent samples (``bounds``), the
-    single-time interval (``bounds_one``) and the fraction of samples inside it."""
-
-    mean: float
-    dof: int
-    samples: int
-    bounds: tuple[float, float]
-    bounds_one: tuple[float, float]
-    frac_inside: float
-
-    @property
-    def inside(self) -> bool:
-        """The mean lies in the interval for independent samples."""
-        return self.bounds[0] <= self.mean <= self.bounds[1]
-
-    @property
-    def inside_one(self) -> bool:
-        """The mean lies in the single-time interval."""
-        return self.bounds_one[0] <= self.mean <= self.bounds_one[1]
-
-
-def nees_check(values: np.ndarray, dof: int, prob: float = 0.95) -> NeesCheck:
-    """:class:`NeesCheck` of the finite NEES ``values`` of one block (``dof`` components)."""
+def nees_check(values: np.ndarray, dof: int, prob: float = 0.95) -> ChiSquareSummary:
+    """The time-averaged NEES of one block (module docstring) from its ``values`` of ``dof``
+    components, the non-finite ones (a singular ``P``) left out."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     if not len(v):
         raise ValueError("no finite NEES value to average")
-    one, frac = anees(v[None, :], dof, prob)  # one run: the single-time interval (consistency.py)
-    return NeesCheck(mean=one.value, dof=dof, samples=len(v), bounds=average_bounds(dof, len(v), prob),
-                     bounds_one=one.bounds, frac_inside=frac)
+    return ChiSquareSummary.of(v, dof, prob)
 
 
 @dataclass(frozen=True)
@@ -226,7 +201,7 @@ class EstimateReport:
     states: int
     unpaired: int
     components: list[ComponentFigures]
-    nees: dict[str, NeesCheck]  #: position, velocity, attitude (3 dof), pose (6)
+    nees: dict[str, ChiSquareSummary]  #: position, velocity, attitude (3 dof), pose (6)
     errors: EstimateErrors
     #: NIS per sensor from the filter re-run (:mod:`lander_tools.estimate_nis`); None when not reported,
     #: and then ``nis_why`` says why.
@@ -258,9 +233,7 @@ class EstimateReport:
         rows = [[f"{c.name} [{c.unit}]"] + [f"{v:.4g}" for v in c.percentiles] + [f"{c.inside_3sigma:.4f}"]
                 for c in self.components]
         head2 = ["NEES", "dof", "mean", "95 % (independent samples)", "95 % (single time)", "samples inside"]
-        rows2 = [[k, str(n.dof), f"{n.mean:.4g}", f"[{n.bounds[0]:.4g}, {n.bounds[1]:.4g}]",
-                  f"[{n.bounds_one[0]:.4g}, {n.bounds_one[1]:.4g}]", f"{n.frac_inside:.4f}"]
-                 for k, n in self.nees.items()]
+        rows2 = [[k, str(n.dof), *n.cells()] for k, n in self.nees.items()]
         for h, rs in ((head, rows), (head2, rows2)):
             widths = [max(len(x) for x in col) for col in zip(h, *rs)]
             fmt = "  " + "  ".join(f"{{:<{w}}}" for w in widths)
@@ -277,7 +250,7 @@ def report(name: str, t: np.ndarray, r_W: np.ndarray, v_W: np.ndarray, q: np.nda
     if not len(err.t):
         return None
     comps: list[ComponentFigures] = []
-    checks: dict[str, NeesCheck] = {}
+    checks: dict[str, ChiSquareSummary] = {}
     for block, (names, unit, _, _) in BLOCKS.items():
         comps += component_figures(err.e[block], err.sigma(block), names, unit)
         checks[block] = nees_check(nees_series(err.e[block], err.P[block]), 3)

@@ -46,11 +46,11 @@ from typing import Any
 
 import numpy as np
 
-from lander_autopilot.estimation.consistency import anis, average_bounds
 from lander_autopilot.estimation.ekf import Update
 from lander_autopilot.estimation.flights import initial_covariance, initial_error_rng, start_filter
 from lander_autopilot.estimation.ticks import Reading, TickFeeder
 from lander_ros.flight_span import SENSOR_KEYS, SENSOR_TOPICS
+from lander_tools.chi_square import ChiSquareSummary
 
 #: The recorded estimate the re-run is checked against.
 ODOMETRY_TOPIC = "/lander/estimate/odometry"
@@ -188,23 +188,16 @@ def odometry_check(states: Sequence[Any], recorded: Sequence[Any]) -> TickCheck:
 
 
 @dataclass(frozen=True)
-class SensorNis:
-    """One sensor's NIS (module docstring): times ``t`` [s] (the tick of each update) and ``values``,
-    each of ``dof`` components; the time average ``mean`` with its exact ``bounds`` for that many
-    independent values, the single-update interval ``bounds_one`` and the fraction inside it."""
+class SensorNis(ChiSquareSummary):
+    """One sensor's NIS (module docstring): the time average against its bounds
+    (:class:`~lander_tools.chi_square.ChiSquareSummary`: ``mean``, ``dof``, ``samples`` updates, the
+    interval for that many independent values ``bounds``, the single-update interval
+    ``bounds_one`` and the fraction inside it), with the times ``t`` [s] (the tick of each update)
+    and the ``values``."""
 
     sensor: str
-    dof: int
     t: np.ndarray
     values: np.ndarray
-    mean: float
-    bounds: tuple[float, float]
-    bounds_one: tuple[float, float]
-    frac_inside: float
-
-    @property
-    def inside(self) -> bool:
-        return self.bounds[0] <= self.mean <= self.bounds[1]
 
 
 def sensor_nis(updates: Sequence[tuple[float, Update]], prob: float = PROB) -> dict[str, SensorNis]:
@@ -214,13 +207,9 @@ def sensor_nis(updates: Sequence[tuple[float, Update]], prob: float = PROB) -> d
         mine = [(t, u) for t, u in updates if u.key == key]
         if not mine:
             continue
-        dof = len(mine[0][1].y)
         values = np.array([u.nis for _, u in mine])
-        c = anis(values, dof, prob)
-        lo, hi = average_bounds(dof, 1, prob)
-        out[key] = SensorNis(sensor=key, dof=dof, t=np.array([t for t, _ in mine]), values=values, mean=c.value,
-                             bounds=c.bounds, bounds_one=(lo, hi),
-                             frac_inside=float(np.mean((values >= lo) & (values <= hi))))
+        out[key] = SensorNis.of(values, len(mine[0][1].y), prob, sensor=key, t=np.array([t for t, _ in mine]),
+                                values=values)
     return out
 
 
@@ -236,7 +225,7 @@ class NisReport:
     sensors: dict[str, SensorNis]
 
     def summary(self) -> dict[str, Any]:
-        return {k: {"dof": s.dof, "updates": len(s.values), "mean": s.mean, "bounds": list(s.bounds),
+        return {k: {"dof": s.dof, "updates": s.samples, "mean": s.mean, "bounds": list(s.bounds),
                     "bounds_single_update": list(s.bounds_one), "frac_inside": s.frac_inside}
                 for k, s in self.sensors.items()}
 
@@ -250,9 +239,7 @@ class NisReport:
         if not self.sensors:
             return out + ["  NIS: no update in the flight (every aiding sensor out of range)"]
         head = ["NIS", "dof", "updates", "mean", "95 % (independent updates)", "95 % (single update)", "updates inside"]
-        rows = [[k, str(s.dof), str(len(s.values)), f"{s.mean:.4g}", f"[{s.bounds[0]:.4g}, {s.bounds[1]:.4g}]",
-                 f"[{s.bounds_one[0]:.4g}, {s.bounds_one[1]:.4g}]", f"{s.frac_inside:.4f}"]
-                for k, s in self.sensors.items()]
+        rows = [[k, str(s.dof), str(s.samples), *s.cells()] for k, s in self.sensors.items()]
         widths = [max(len(x) for x in col) for col in zip(head, *rows)]
         fmt = "  " + "  ".join(f"{{:<{w}}}" for w in widths)
         return out + [fmt.format(*head).rstrip()] + [fmt.format(*r).rstrip() for r in rows]

@@ -61,15 +61,16 @@ def design_gains(report: Mapping[str, Any], controller: str) -> dict[str, Any]:
 def gains_text(controller: str, params: Mapping[str, Any], comment: str = "") -> str:
     """The gains file's text: ``comment`` lines, then the autopilot's section."""
     body = yaml.safe_dump({"autopilot": {"ros__parameters": {
-        "controller": controller, "controller_params": _flow(params)}}},
+        "controller": controller, "controller_params": controller_params_text(params)}}},
         sort_keys=False, width=1_000_000)
     head = "".join(f"# {line}\n" for line in comment.splitlines())
     return head + body
 
 
-def _flow(params: Mapping[str, Any]) -> str:
+def controller_params_text(params: Mapping[str, Any]) -> str:
     """``params`` as one YAML flow mapping on one line (:func:`dump_controller_params`'s form,
-    unwrapped, every float in full: ``repr`` round-trips)."""
+    unwrapped, every float in full: ``repr`` round-trips): the ``controller_params`` of a gains
+    file, and what ``lander switch --gains`` and the student page send the autopilot."""
     return yaml.safe_dump(dict(params), default_flow_style=True, sort_keys=True, width=1_000_000).strip()
 
 

@@ -27,9 +27,7 @@ def run(args: argparse.Namespace) -> int:
     text = ""
     name = args.name
     if args.gains is not None:
-        import yaml
-
-        from lander_tools.gains import read_gains
+        from lander_tools.gains import controller_params_text, read_gains
 
         if args.params is not None:
             raise ValueError("--params and --gains: give one of them (a gains file holds the parameters)")
@@ -37,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
         if name is not None and name != controller:
             raise ValueError(f"--gains {args.gains} holds gains for controller {controller!r}, not {name!r}")
         name = controller
-        text = yaml.safe_dump(params, default_flow_style=True, sort_keys=True, width=1_000_000).strip()
+        text = controller_params_text(params)
     elif name is None:
         raise ValueError("NAME: give the controller to switch to (or --gains FILE)")
     elif args.params is not None:

@@ -2,6 +2,7 @@
 docstring, :mod:`lander_tools.fly`, says what each does and why)."""
 from __future__ import annotations
 
+import math
 import os
 import secrets
 import shutil
@@ -53,6 +54,8 @@ from lander_tools.live.bridge import command as live_command
 from lander_tools.metrics_fit import scene_facts
 from lander_tools.progress import Progress
 
+#: Seconds [s] within which a stamp (whole nanoseconds) is the sim time it was made from.
+STAMP_TOLERANCE = 1e-6
 #: Wall seconds to wait for a lockstep autopilot's answer to state 1, and resets tried in all.
 ANSWER_TIMEOUT = 5.0
 RESET_ATTEMPTS = 3
@@ -339,6 +342,7 @@ def reset_flight(f: LaunchedFlight) -> list[Stop]:
     for attempt in range(1, RESET_ATTEMPTS + 1):
         sup.received.clear()  # counts of the flight: from its reset on
         sup.answered_first, sup.last_answer, states0 = False, 0, sup.states
+        sup.last_status_t = -math.inf
         res = call(f.executor, sup.cli_reset, Reset.Request(), STARTUP_TIMEOUT, "reset")
         if not res.success:
             raise LaunchError(f"the sim refused the reset: {res.message}")
@@ -395,23 +399,28 @@ def stop_nodes(f: LaunchedFlight) -> None:
     f.stopped = True
     if sup is not None and sup.flight_end is not None:
         # Topics are not ordered among themselves: the end state may still be on its way here.
-        published = sup.flight_end.counts
+        published, end_t = sup.flight_end.counts, sup.flight_end.t
         rec = sup.recorder
         wanted = {t: n for t, n in published.items() if rec is not None and rec.wanted(t)}
         if f.plan.estimate:  # one estimate per state on each of the estimator's topics
             wanted.update({t: published["/lander/state"] for t in ESTIMATE_TOPICS if rec is not None and rec.wanted(t)})
 
         def delivered() -> bool:
-            # In lockstep the autopilot answers the end state too: that answer belongs to the flight.
-            answered = not sup.lockstep or sup.last_answer >= published["/lander/state"]
+            # In lockstep the autopilot answers the end state too, a command and then its status:
+            # both belong to the flight (stopping the autopilot between the two loses the status).
+            answered = not sup.lockstep or (sup.last_answer >= published["/lander/state"]
+                                            and sup.last_status_t >= end_t - STAMP_TOLERANCE)
             # The states are counted where they are kept (the bag): this node's own watch
             # subscription may lose some on a loaded machine or a flat-out flight (it is the slower
             # reader), so waiting for it to count them all would run out the delivery timeout. The
             # watch needs the end state itself (the summary's last state); one reliable writer
             # delivers in order, so the latest state the watch holds is the highest.
             seen_end = sup.state is not None and sup.state.sequence >= published["/lander/state"]
+            # What this node's watch received of the autopilot's status, the bag holds too.
+            status = ({"/autopilot/status": sup.received.get("/autopilot/status", 0)}
+                      if rec is not None and rec.wanted("/autopilot/status") else {})
             return answered and seen_end and all(rec is not None and rec.counts.get(t, 0) >= n
-                                                 for t, n in wanted.items())
+                                                 for t, n in (wanted | status).items())
 
         deadline = time.monotonic() + DELIVERY_TIMEOUT
         while not delivered() and time.monotonic() < deadline:

@@ -3,6 +3,7 @@ the sim's FLIGHT_ENDED), answers the sim when the flight has no autopilot, carri
 actions, holds the recorder and counts what it received and sent for the bag check."""
 from __future__ import annotations
 
+import math
 import time
 from typing import Any, TextIO
 
@@ -94,6 +95,8 @@ class Supervisor:
         self.subs = self._create_watch()
         self.answered_first = False  #: the autopilot answered state 1 (the reset's) since the last reset
         self.last_answer = 0  #: highest state sequence answered on /lander/throttle since the reset
+        #: Latest stamp [s] of an /autopilot/status (the autopilot stamps it with the state it answers).
+        self.last_status_t = -math.inf
         self.clock_t = 0.0  #: latest /clock [s]: where a paused sim stands before its state is out
         self.state: Any = None  #: the latest LanderState
         self.states = 0
@@ -150,7 +153,7 @@ class Supervisor:
         }
         if self.controller is not None:
             subs["/autopilot/status"] = n.create_subscription(
-                AutopilotStatus, "/autopilot/status", lambda _m: self._count("/autopilot/status"), RELIABLE)
+                AutopilotStatus, "/autopilot/status", self._on_status, RELIABLE)
         # The autopilot's reports (the bag check's reference; the sim counts its own) and the sim's
         # (paused or running: the stall watch, stall_reason).
         subs["/diagnostics"] = n.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, RELIABLE)
@@ -195,6 +198,10 @@ class Supervisor:
         if msg.state_sequence == 1:
             self.answered_first = True
         self.last_answer = max(self.last_answer, int(msg.state_sequence))
+
+    def _on_status(self, msg: Any) -> None:
+        self._count("/autopilot/status")
+        self.last_status_t = max(self.last_status_t, stamp_to_seconds(msg.header.stamp))
 
     def _on_clock(self, msg: Any) -> None:
         self.clock_t = stamp_to_seconds(msg.clock)

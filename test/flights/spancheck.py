@@ -6,7 +6,9 @@ What "the whole flight, exactly" means (docs/flying.md, "A flight's span"):
 * the first state is state 1 at t = 0 and the last is the end instant the sim announced, with the
   sequence 1, 2, ... N and no gap; nothing stamped after the end on any topic;
 * per topic the sim publishes, the bag holds exactly the count the sim reported;
-* in lockstep every state was answered exactly once, and every answer is in the bag.
+* in lockstep every state was answered exactly once, and every answer is in the bag; where the
+  flight has an autopilot (its status in the bag), its status stamped with every state, the end
+  state's too (the launcher stops the autopilot only once it has both).
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ class Span:
     state_t: list[float]
     state_seq: list[int]
     answers: list[int]
+    status_t: list[float]  #: stamps of /autopilot/status (the state each answers, or a report's)
     stamps: dict[str, list[float]] = field(default_factory=dict)
     recorded: set[str] = field(default_factory=set)  #: topics the recorder subscribed to (the bag's channels)
 
@@ -52,7 +55,7 @@ def read_span(bag: Path) -> Span:
         summary = make_reader(fh).get_summary()
     recorded = {c.topic for c in summary.channels.values()} if summary is not None else set()
     counts: Counter = Counter({t: 0 for t in recorded})
-    ends, state_t, state_seq, answers = [], [], [], []
+    ends, state_t, state_seq, answers, status_t = [], [], [], [], []
     stamps: dict[str, list[float]] = defaultdict(list)
     for m in read_ros2_messages(str(files[0])):
         topic, msg = m.channel.topic, m.ros_msg
@@ -76,10 +79,12 @@ def read_span(bag: Path) -> Span:
             state_seq.append(int(msg.sequence))
         elif topic == "/lander/throttle" and msg.state_sequence:
             answers.append(int(msg.state_sequence))
+        elif topic == "/autopilot/status":
+            status_t.append(_t(msg.header.stamp))
         elif topic == "/lander/events" and msg.kind == FLIGHT_ENDED:
             ends.append(FlightEnd.from_values(list(msg.values)))
     assert len(ends) == 1, f"{bag}: {len(ends)} FLIGHT_ENDED events (expected exactly one)"
-    return Span(counts, ends[0], state_t, state_seq, answers, dict(stamps), recorded)
+    return Span(counts, ends[0], state_t, state_seq, answers, status_t, dict(stamps), recorded)
 
 
 def check_span(bag: Path, end_t: float | None = None, lockstep: bool = False,
@@ -111,4 +116,8 @@ def check_span(bag: Path, end_t: float | None = None, lockstep: bool = False,
             f"{sorted(set(s.state_seq) - set(s.answers))[:10]}, repeated "
             f"{sorted(k for k, c in Counter(s.answers).items() if c > 1)[:10]}; the sim advanced past "
             f"{end.lockstep_timeouts} states without their answer (FLIGHT_ENDED's lockstep timeouts)")
+        if s.status_t:  # the flight has an autopilot
+            unreported = sorted(set(s.state_t) - set(s.status_t))
+            assert not unreported, (f"/autopilot/status: no status stamped with {len(unreported)} of the "
+                                    f"{len(s.state_t)} states, first at {unreported[:3]} s")
     return s

@@ -12,6 +12,7 @@ the nodes (what made the verbs late in the module answer "no flight" in one CI r
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -99,6 +100,27 @@ def _state(client: FoxgloveTestClient) -> dict[str, Any]:
     s = client.latest("/live/state")
     assert s is not None
     return s
+
+
+@contextlib.contextmanager
+def live_page(live: dict[str, Any], height: int = 1000, ready: str = "") -> Iterator[tuple[Any, list[str]]]:
+    """The student page of the module's flight in headless Chromium (1400 x ``height``): the page
+    once it has drawn a few states (and the JavaScript condition ``ready``, if any), and the list
+    its console errors go to; the browser closed afterwards."""
+    from playwright.sync_api import sync_playwright
+
+    url = f"http://127.0.0.1:{live['page_port']}/"
+    with sync_playwright() as pw:
+        browser = launch_chromium(pw)
+        try:
+            page = browser.new_context(viewport={"width": 1400, "height": height}).new_page()
+            errors = console_errors(page)
+            page.goto(url)
+            page.wait_for_function("window.liveStats && window.liveStats.states > 5" + (f" && {ready}" if ready else ""),
+                                   timeout=30_000)
+            yield page, errors
+        finally:
+            browser.close()
 
 
 def test_server_speaks_sdk_v1_and_advertises_the_channels_with_their_schemas(live: dict[str, Any]) -> None:
@@ -356,84 +378,62 @@ def test_student_page_in_chromium_sets_the_demand_and_the_flight_follows(
     import os
     import shutil
 
-    from playwright.sync_api import sync_playwright
-
     c: FoxgloveTestClient = live["client"]
-    url = f"http://127.0.0.1:{live['page_port']}/"
-    with sync_playwright() as pw:
-        browser = launch_chromium(pw)
-        try:
-            page = browser.new_context(viewport={"width": 1400, "height": 900}).new_page()
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(url)
-            page.wait_for_function("window.liveStats && window.liveStats.states > 5", timeout=30_000)
-            # The page is fed a stream of new states (the flight sends 150/s, the bridge at most
-            # 60 a wall second), not a trickle: 30 more arrive within 10 s and sim time moves on.
-            # How fast is bench/live.py's figure (goal >= 30 Hz): asserted here in wall time, it
-            # failed at 28.6 Hz on a 2-core machine running two sweeps beside the suite.
-            n0, t0 = page.evaluate("[window.liveStats.states, window.liveStats.last.t]")
-            page.wait_for_function(f"window.liveStats.states >= {n0 + 30}", timeout=10_000)
-            n1, t1 = page.evaluate("[window.liveStats.states, window.liveStats.last.t]")
-            assert n1 >= n0 + 30 and t1 > t0
-            page.fill("#demand-input", "508")
-            page.press("#demand-input", "Enter")
-            page.wait_for_function("document.getElementById('demand').textContent === '508.0'", timeout=30_000)
-            wait_until(lambda: abs(_state(c)["altitude"] - 508.0) < 0.2 and abs(_state(c)["climb_rate"]) < 0.05,
-                       90.0, "the flight's altitude at the page's demand")
-            page.wait_for_timeout(300)  # let the graphs draw the settled flight for the picture
-            shot = tmp_path / "live-page.png"
-            page.screenshot(path=str(shot))
-            assert shot.stat().st_size > 10_000
-            if os.environ.get("LANDER_DOCS_SCREENSHOT"):  # refresh the README's picture on request
-                shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
-            assert errors == []
-        finally:
-            browser.close()
+    with live_page(live, height=900) as (page, errors):
+        # The page is fed a stream of new states (the flight sends 150/s, the bridge at most
+        # 60 a wall second), not a trickle: 30 more arrive within 10 s and sim time moves on.
+        # How fast is bench/live.py's figure (goal >= 30 Hz): asserted here in wall time, it
+        # failed at 28.6 Hz on a 2-core machine running two sweeps beside the suite.
+        n0, t0 = page.evaluate("[window.liveStats.states, window.liveStats.last.t]")
+        page.wait_for_function(f"window.liveStats.states >= {n0 + 30}", timeout=10_000)
+        n1, t1 = page.evaluate("[window.liveStats.states, window.liveStats.last.t]")
+        assert n1 >= n0 + 30 and t1 > t0
+        page.fill("#demand-input", "508")
+        page.press("#demand-input", "Enter")
+        page.wait_for_function("document.getElementById('demand').textContent === '508.0'", timeout=30_000)
+        wait_until(lambda: abs(_state(c)["altitude"] - 508.0) < 0.2 and abs(_state(c)["climb_rate"]) < 0.05,
+                   90.0, "the flight's altitude at the page's demand")
+        page.wait_for_timeout(300)  # let the graphs draw the settled flight for the picture
+        shot = tmp_path / "live-page.png"
+        page.screenshot(path=str(shot))
+        assert shot.stat().st_size > 10_000
+        if os.environ.get("LANDER_DOCS_SCREENSHOT"):  # refresh the README's picture on request
+            shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
+        assert errors == []
 
 
 def test_gains_designed_are_flown_from_the_page_and_shown_in_force(live: dict[str, Any], tmp_path: Path) -> None:
     """The gains `lander design --write` gives, typed into the page's controller fields: the
     autopilot flies that controller with those gains, every bit, and the page's instruments say so."""
     import yaml
-    from playwright.sync_api import sync_playwright
 
-    from lander_tools.gains import read_gains
+    from lander_tools.gains import controller_params_text, read_gains
     from lander_tools.live.link import FlightLink
 
     gains = tmp_path / "gains.yaml"
     assert lander(["design", "hover-canted", "--altitude-poles", "-0.5", "-0.6", "--write", str(gains)]) == 0
     controller, params = read_gains(gains)
-    text = yaml.safe_dump(params, default_flow_style=True, sort_keys=True, width=1_000_000).strip()
+    text = controller_params_text(params)
     with FlightLink("test_page_gains") as link:
         before = link.get_parameters("/autopilot", ["controller", "controller_params"])
-    url = f"http://127.0.0.1:{live['page_port']}/"
-    with sync_playwright() as pw:
-        browser = launch_chromium(pw)
-        try:
-            page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
-            errors = console_errors(page)
-            page.goto(url)
-            page.wait_for_function("window.liveStats && window.liveStats.states > 5", timeout=30_000)
-            page.fill("#controller-input", controller)
-            page.fill("#params-input", text)
-            page.click("#switch")
-            page.wait_for_function(f"document.getElementById('i-controller').textContent === {json.dumps(controller)}"
-                                   f" && document.getElementById('i-gains').textContent === {json.dumps(text)}",
-                                   timeout=30_000)
-            with FlightLink("test_page_gains") as link:
-                now = link.get_parameters("/autopilot", ["controller", "controller_params"])
-            assert now["controller"] == controller
-            assert yaml.safe_load(now["controller_params"]) == params  # the designed gains, every bit
-            # Back to the law the module's flight flew, from the page too.
-            page.fill("#controller-input", before["controller"])
-            page.fill("#params-input", before["controller_params"])
-            page.click("#switch")
-            page.wait_for_function("document.getElementById('i-controller').textContent === "
-                                   f"{json.dumps(before['controller'])}", timeout=30_000)
-            assert errors == []
-        finally:
-            browser.close()
+    with live_page(live) as (page, errors):
+        page.fill("#controller-input", controller)
+        page.fill("#params-input", text)
+        page.click("#switch")
+        page.wait_for_function(f"document.getElementById('i-controller').textContent === {json.dumps(controller)}"
+                               f" && document.getElementById('i-gains').textContent === {json.dumps(text)}",
+                               timeout=30_000)
+        with FlightLink("test_page_gains") as link:
+            now = link.get_parameters("/autopilot", ["controller", "controller_params"])
+        assert now["controller"] == controller
+        assert yaml.safe_load(now["controller_params"]) == params  # the designed gains, every bit
+        # Back to the law the module's flight flew, from the page too.
+        page.fill("#controller-input", before["controller"])
+        page.fill("#params-input", before["controller_params"])
+        page.click("#switch")
+        page.wait_for_function("document.getElementById('i-controller').textContent === "
+                               f"{json.dumps(before['controller'])}", timeout=30_000)
+        assert errors == []
 
 
 def test_3d_view_and_instruments_follow_the_flight_and_settings_from_the_cli(
@@ -448,60 +448,49 @@ def test_3d_view_and_instruments_follow_the_flight_and_settings_from_the_cli(
     import time
 
     import numpy as np
-    from playwright.sync_api import sync_playwright
 
-    url = f"http://127.0.0.1:{live['page_port']}/"
-    with sync_playwright() as pw:
-        browser = launch_chromium(pw)
+    with live_page(live, ready="window.liveStats.history > 0") as (page, errors):
+        # The fixture reset the flight to t = 0 before the page opened: the graphs start there.
+        t_first, t_last = page.evaluate("window.samplesSpan()")
+        assert t_first == 0.0 and t_last > 0.0
+        for _ in range(5):  # five successive states, each as drawn
+            n = page.evaluate("window.liveStats.states")
+            page.wait_for_function(f"window.liveStats.states > {n}", timeout=10_000)
+            rec, drawn, fuel = page.evaluate("[window.liveStats.last, window.view3d.state(),"
+                                             " document.getElementById('i-fuel').textContent]")
+            assert drawn["t"] == rec["t"] and drawn["view"] == "local"
+            np.testing.assert_allclose(drawn["z_axis"], rec["up_S"], atol=1e-6)
+            np.testing.assert_allclose(drawn["position"], rec["position_S"], atol=1e-3)
+            assert drawn["plumes"] == sum(1 for u in rec["throttles"] if u > 0)
+            assert fuel == f"{rec['fuel']:.2f}"
         try:
-            page = browser.new_context(viewport={"width": 1400, "height": 1000}).new_page()
-            errors = console_errors(page)
-            page.goto(url)
-            page.wait_for_function("window.liveStats && window.liveStats.states > 5 && window.liveStats.history > 0",
-                                   timeout=30_000)
-            # The fixture reset the flight to t = 0 before the page opened: the graphs start there.
-            t_first, t_last = page.evaluate("window.samplesSpan()")
-            assert t_first == 0.0 and t_last > 0.0
-            for _ in range(5):  # five successive states, each as drawn
-                n = page.evaluate("window.liveStats.states")
-                page.wait_for_function(f"window.liveStats.states > {n}", timeout=10_000)
-                rec, drawn, fuel = page.evaluate("[window.liveStats.last, window.view3d.state(),"
-                                                 " document.getElementById('i-fuel').textContent]")
-                assert drawn["t"] == rec["t"] and drawn["view"] == "local"
-                np.testing.assert_allclose(drawn["z_axis"], rec["up_S"], atol=1e-6)
-                np.testing.assert_allclose(drawn["position"], rec["position_S"], atol=1e-3)
-                assert drawn["plumes"] == sum(1 for u in rec["throttles"] if u > 0)
-                assert fuel == f"{rec['fuel']:.2f}"
-            try:
-                code, _, err = run(capfd, "demand", "520")
-                assert code == 0, err
-                t0 = time.monotonic()
-                page.wait_for_function("document.getElementById('demand-input').value === '520'"
-                                       " && document.getElementById('demand').textContent === '520.0'", timeout=1_000)
-                code, _, err = run(capfd, "wind", "5", "0", "0")
-                assert code == 0, err
-                page.wait_for_function("document.getElementById('wind-x').value === '5'"
-                                       " && document.getElementById('i-wind').textContent === '5.0 0.0 0.0'",
-                                       timeout=1_000)
-                assert time.monotonic() - t0 < 30.0
-                boxes = page.evaluate("window.graphBoxes")
-                assert set(boxes) == {"g-altitude", "g-climb", "g-attitude", "g-throttle"}
-                for name, b in boxes.items():
-                    assert len(set(b["yLabels"])) == len(b["yLabels"]) >= 2, (name, b["yLabels"])
-                    tx, _, tw, _ = b["title"]
-                    assert all(lx >= tx + tw for lx, _, _, _ in b["legend"]), (name, b)
-                # A flat range (altitude at its demand) still has distinct, rounded labels.
-                flat = page.evaluate("window.axes.axis(520, 520).ticks.map((t) => t.label)")
-                assert len(set(flat)) == len(flat) >= 3 and all(len(x.split(".")[-1]) <= 1 or "." not in x for x in flat)
-                page.wait_for_timeout(300)  # let a frame draw the settled view for the picture
-                shot = tmp_path / "live-3d.png"
-                page.locator("#view3d").screenshot(path=str(shot))
-                if os.environ.get("LANDER_DOCS_SCREENSHOT"):
-                    shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
-                assert errors == []
-            finally:
-                run(capfd, "demand", "500")
-                run(capfd, "wind", "0", "0", "0")
+            code, _, err = run(capfd, "demand", "520")
+            assert code == 0, err
+            t0 = time.monotonic()
+            page.wait_for_function("document.getElementById('demand-input').value === '520'"
+                                   " && document.getElementById('demand').textContent === '520.0'", timeout=1_000)
+            code, _, err = run(capfd, "wind", "5", "0", "0")
+            assert code == 0, err
+            page.wait_for_function("document.getElementById('wind-x').value === '5'"
+                                   " && document.getElementById('i-wind').textContent === '5.0 0.0 0.0'",
+                                   timeout=1_000)
+            assert time.monotonic() - t0 < 30.0
+            boxes = page.evaluate("window.graphBoxes")
+            assert set(boxes) == {"g-altitude", "g-climb", "g-attitude", "g-throttle"}
+            for name, b in boxes.items():
+                assert len(set(b["yLabels"])) == len(b["yLabels"]) >= 2, (name, b["yLabels"])
+                tx, _, tw, _ = b["title"]
+                assert all(lx >= tx + tw for lx, _, _, _ in b["legend"]), (name, b)
+            # A flat range (altitude at its demand) still has distinct, rounded labels.
+            flat = page.evaluate("window.axes.axis(520, 520).ticks.map((t) => t.label)")
+            assert len(set(flat)) == len(flat) >= 3 and all(len(x.split(".")[-1]) <= 1 or "." not in x for x in flat)
+            page.wait_for_timeout(300)  # let a frame draw the settled view for the picture
+            shot = tmp_path / "live-3d.png"
+            page.locator("#view3d").screenshot(path=str(shot))
+            if os.environ.get("LANDER_DOCS_SCREENSHOT"):
+                shutil.copy(shot, os.environ["LANDER_DOCS_SCREENSHOT"])
+            assert errors == []
         finally:
-            browser.close()
+            run(capfd, "demand", "500")
+            run(capfd, "wind", "0", "0", "0")
 

@@ -12,11 +12,12 @@ import pytest
 
 from lander_autopilot.controllers import make_controller
 from lander_autopilot.design.report import design_report
+from lander_autopilot.ros.config import parse_controller_params
 from lander_sim.scenes import load_scene
 from lander_tools import cli
 from lander_tools.fly.checks import controllability_warning
 from lander_tools.fly.plan import FlightPlan
-from lander_tools.gains import GainsError, apply_gains, parse_sets, read_gains
+from lander_tools.gains import GainsError, apply_gains, controller_params_text, gains_text, parse_sets, read_gains
 
 
 def test_the_written_gains_build_the_law_the_poles_build(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -70,6 +71,18 @@ def test_a_gains_file_for_another_controller_or_with_unknown_names_is_one_line(t
     extra.write_text("autopilot:\n  ros__parameters:\n    controller: altitude\n    demand_altitude: 5.0\n")
     with pytest.raises(GainsError, match="unknown key\\(s\\) demand_altitude"):
         read_gains(extra)
+
+
+def test_the_controller_params_text_is_one_line_the_autopilot_reads_back_bit_for_bit(tmp_path: Path) -> None:
+    """The one text of a law's parameters (gains file, `lander switch --gains`, the page): one line
+    however long, and what the autopilot parses from it is every float as given (YAML writes repr)."""
+    params = {"K_altitude": [[0.1 + 0.2, 1.0 / 3.0]], "K_attitude": [[2.0 ** -40] * 6] * 4, "design_fuel": 100.0}
+    text = controller_params_text(params)
+    assert "\n" not in text and text.startswith("{") and text.endswith("}")
+    assert parse_controller_params(text) == params
+    path = tmp_path / "gains.yaml"
+    path.write_text(gains_text("combined", params))
+    assert read_gains(path) == ("combined", params)
 
 
 def test_set_reads_yaml_values_on_top_of_the_scene_parameters() -> None:

@@ -12,6 +12,7 @@ A script file (``flights/*.yaml``)::
     sim: {publish_rate: 20}           # lander_sim node parameters
     autopilot: {}                     # lander_autopilot node parameters
     record: {storage: mcap, topics: [/clock, /lander/state]}   # both optional
+    estimate: false                   # true: the estimator flies beside the sim, the autopilot on its estimate
     end: {time: 60.0, on: [landed, crashed]}                   # time: sim seconds (required)
     timeline:                         # one action per entry, applied at sim time t [s]
       - {t: 0, demand_altitude: 500}
@@ -41,7 +42,7 @@ from lander_tools.fly.plan import ACTION_KINDS, Action, FlightPlan, FlightResult
 from lander_yaml import read_yaml
 
 _TOP_KEYS = {"name", "description", "scene", "controller", "controller_params", "speed", "lockstep",
-             "sim", "autopilot", "record", "end", "timeline", "compose"}
+             "sim", "autopilot", "record", "end", "timeline", "compose", "estimate"}
 
 
 class ScriptError(ValueError):
@@ -67,6 +68,8 @@ class Script:
     end_on: tuple[str, ...] = ("landed", "crashed")
     timeline: list[Action] = field(default_factory=list)
     compose: bool = False
+    #: Fly on the estimate (``lander fly --estimate``): the scene needs sensors with an IMU.
+    estimate: bool = False
     source: Path | None = None
 
     def plan(self, record: Path | None = None, storage: str | None = None) -> FlightPlan:
@@ -84,6 +87,7 @@ class Script:
             storage=storage or self.storage,
             topics=self.topics,
             compose=self.compose,
+            estimate=self.estimate,
             timeline=list(self.timeline),
             end_on=self.end_on,
             meta={"script": self.name},
@@ -194,6 +198,9 @@ def parse_script(data: Any, source: str = "<script>") -> Script:
     if speed < 0:
         raise ScriptError(f"{source}: speed = {speed}: must be >= 0 (0 = as fast as possible)")
     ctrl = data.get("controller")
+    for key in ("compose", "estimate"):
+        if not isinstance(data.get(key, False), bool):
+            raise ScriptError(f"{source}: {key}: expected true or false, got {data[key]!r}")
     return Script(
         name=str(data.get("name", Path(source).stem)),
         description=str(data.get("description", "")),
@@ -210,6 +217,7 @@ def parse_script(data: Any, source: str = "<script>") -> Script:
         end_on=tuple(on),
         timeline=[_action(e, f"{source}: timeline[{i}]") for i, e in enumerate(timeline)],
         compose=bool(data.get("compose", False)),
+        estimate=bool(data.get("estimate", False)),
         source=Path(source) if source != "<script>" else None,
     )
 

@@ -12,16 +12,20 @@ starts one, but from outside:
 2. **match from both ends**: the recorder's readers have matched every publisher of each recorded
    simulator topic, and the simulator's writers (``/lander/subscribers``) count one more reader
    than before the recorder existed (and one more on ``/lander/events``: this command's watch);
+   the autopilot's state reader (of ``/lander/state``, or of the estimate it flies on) has its
+   writer, and with an estimator node (``/lander_estimator``) its readers have the simulator's state
+   and sensor writers and the recorder's readers have its estimate writers (recorded by default);
 3. **pause** the flight (the answer says whether it was running) and let what was in flight
    arrive; the recorder drops all of it (it is *held*);
 4. with ``--duration S``, set the simulator's ``end_time`` to S (the sim stops itself there);
 5. **reset**: release the recorder, reset the flight (state 1 at t = 0 goes to everyone matched),
    and resume it if it was running (a paused flight stays paused: whoever paused it resumes it);
 6. **record to the end**: at the simulator's ``FLIGHT_ENDED`` wait until the recorder holds as
-   many messages as the simulator counted on each of its topics, close the bag and compare, exit
-   3 with a line per short topic. Without an end (no ``end_time`` / ``end_on`` on the sim and no
-   ``--duration``), record until Ctrl-C / SIGTERM or until the simulator leaves, and say that the
-   bag was not checked.
+   many messages as the simulator counted on each of its topics (and, with an estimator, one
+   estimate per state on each estimate topic: the estimator restarts its filter at the reset's
+   state 1), close the bag and compare, exit 3 with a line per short topic. Without an end (no
+   ``end_time`` / ``end_on`` on the sim and no ``--duration``), record until Ctrl-C / SIGTERM or
+   until the simulator leaves, and say that the bag was not checked.
 
 Exit status: 0 the bag holds the whole flight (or was stopped before an end, unchecked), 1 no
 flight / a flight this command must not restart / a refusal by the simulator, 2 bad options,
@@ -55,6 +59,9 @@ QUIET_LIMIT = 5.0
 #: Wall seconds to wait, after FLIGHT_ENDED, for the recorder to hold what the simulator counted.
 DELIVERY_TIMEOUT = 10.0
 LAUNCHER_NODE = "/lander_fly"
+#: The estimator node (lander_autopilot.estimator_node) and its outputs (lander_tools.fly.plan).
+ESTIMATOR_NODE = "/lander_estimator"
+ESTIMATE_TOPICS = ("/lander/estimate/odometry", "/lander/estimate/state")
 
 
 class _Refused(Exception):
@@ -139,6 +146,10 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             return parse_matched(link.call(Trigger, "/lander/subscribers", Trigger.Request()).message)
 
         config.meta.update(_flight_meta(link))
+        if not args.topics and not args.all:
+            # an estimator's outputs beside the truth, as `lander fly --estimate` records them (recorded
+            # only if published, as the sensors' topics)
+            config.topics = tuple(dict.fromkeys((*config.topics, *ESTIMATE_TOPICS)))
         if config.meta["lockstep"] == "True" and config.meta["controller"] == "none":
             # a lockstep sim waits for an autopilot: give it the discovery time the simulator had
             try:
@@ -162,6 +173,14 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             need = {t: before.get(t, 0) + 1 for t in sim_topics}
             need["/lander/events"] = before.get("/lander/events", 0) + 1 + ("/lander/events" in sim_topics)
             _wait_matched(link, rec, need, sim_topics, sim_matched, stop)
+            # by now every reader of the state the sim has matched is known by its node's name: an
+            # estimator node (it reads the state) is in the graph if it is in the flight
+            estimates: list[str] = []
+            if ESTIMATOR_NODE in link.node_names():
+                _wait_matched(link, rec, need, sim_topics, sim_matched, stop)  # its ends too, whenever it was seen
+                estimates = [t for t in ESTIMATE_TOPICS if rec.wanted(t)]
+                # its initial-error seed, for the re-run of `lander analyse` (-1: the scene's sensors.seed)
+                rec.writer.set_custom_data("seed", str(link.get_parameters(ESTIMATOR_NODE, ["seed"]).get("seed")))
             # /lander/events has other publishers (the autopilot): the sim's count is then a floor
             shared = {t for t in sim_topics if len(link.node.get_publishers_info_by_topic(t)) > 1}
 
@@ -204,7 +223,8 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             flight_end = ends[0] if ends else None
             if flight_end is not None:
                 _say(flight_end.detail())
-                _wait_delivered(rec, {t: flight_end.counts.get(t, 0) for t in sim_topics})
+                _wait_delivered(rec, {t: flight_end.counts.get(t, 0) for t in sim_topics}
+                                | dict.fromkeys(estimates, flight_end.counts.get("/lander/state", 0)))
         except BaseException:
             counts = rec.close()
             if not any(counts.values()):  # held all along: an empty bag would only mislead
@@ -218,6 +238,8 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
             _say("bag not checked: the flight did not reach its end while recording")
             return EXIT_OK
         reference = {t: (flight_end.counts.get(t, 0), t not in shared) for t in sim_topics}
+        # the estimator answers every state of the restarted flight with one estimate on each topic
+        reference.update(dict.fromkeys(estimates, (flight_end.counts.get("/lander/state", 0), True)))
         short, extra = shortfalls(reference, counts), surplus(reference, counts)
         if short:
             _say("INCOMPLETE: " + ", ".join(short) + " published")
@@ -273,9 +295,11 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
     """Step 2: spin until both ends are matched; TimeoutError naming what is still waiting.
 
     The recorder's readers: every publisher the graph shows on each recorded topic (the sim's
-    topics at least one), and with an autopilot node its throttles and status. The other ends:
-    the sim's writers (``need``, from ``/lander/subscribers``) and the autopilot's state reader
-    (``/autopilot/matched``), so that state 1 of the reset reaches the autopilot too."""
+    topics at least one), with an autopilot node its throttles and status, with an estimator node
+    its recorded estimate topics. The other ends: the sim's writers (``need``, from
+    ``/lander/subscribers``), the autopilot's state reader (``/autopilot/matched``: of the truth or of the estimate, whichever it
+    flies on) and the estimator's state and sensor readers (``/lander_estimator/matched``), so that
+    state 1 of the reset and its readings reach them too."""
     from std_srvs.srv import Trigger
 
     from lander_ros.flight_span import parse_matched
@@ -285,7 +309,10 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
     waiting: list[str] = []
     while True:
         autopilot = AUTOPILOT_NODE in link.node_names()
+        estimator = ESTIMATOR_NODE in link.node_names()
         floor = dict.fromkeys(sim_topics, 1)
+        if estimator:
+            floor.update({t: 1 for t in ESTIMATE_TOPICS if rec.wanted(t)})
         if autopilot:
             floor.update({t: 1 for t in ("/lander/throttle", "/autopilot/status") if rec.wanted(t)})
         topics = set(floor) | {t for t, _ in link.node.get_topic_names_and_types() if rec.wanted(t)}
@@ -301,9 +328,12 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
             if len(named) < have.get("/lander/state", 0):
                 waiting.append("the names of the state's readers")
         if not waiting and autopilot:
-            answer = link.call(Trigger, "/autopilot/matched", Trigger.Request()).message
-            if parse_matched(answer).get("sub:/lander/state", 0) < 1:
-                waiting.append("autopilot <- /lander/state")
+            answer = parse_matched(link.call(Trigger, "/autopilot/matched", Trigger.Request()).message)
+            # one state reader: sub:/lander/state, or sub:/lander/estimate/state flying on the estimate
+            waiting += [f"autopilot <- {k[4:]}" for k, n in answer.items() if k.startswith("sub:") and n < 1]
+        if not waiting and estimator:
+            answer = parse_matched(link.call(Trigger, f"{ESTIMATOR_NODE}/matched", Trigger.Request()).message)
+            waiting += [f"estimator <- {k[4:]}" for k, n in answer.items() if k.startswith("sub:") and n < 1]
         if not waiting:
             return
         if time.monotonic() > deadline or stop.is_set():

@@ -10,8 +10,11 @@ from typing import Any, TextIO
 
 import yaml
 
+from lander_autopilot.ros.config import dump_controller_params, parse_controller_params, scene_autopilot
+from lander_sim.scenes import load_scene
 from lander_tools import child
 from lander_tools.fly.checks import read_params_file
+from lander_tools.fly.navigation import estimate_params
 from lander_tools.fly.plan import AUTOPILOT_NODE, ESTIMATOR_NODE, SIM_NODE, FlightPlan, pilot_mode
 
 #: Wall seconds a node gets to stop after SIGINT, then again after SIGTERM.
@@ -134,6 +137,8 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
         if plan.estimate:
             ap_params["state_source"] = "estimate"
         ap_params.update(plan.autopilot_params)
+        if plan.estimate:
+            _tell_navigation_error(ap_params, plan.scene, _estimator_params(plan, sim_params, flight_id))
         ap_args = ["--params-file", str(_params_yaml(AUTOPILOT_NODE, ap_params, folder))]
     if plan.compose and controller is not None:
         cmds["composed"] = child.command("lander_tools.fly.composed", ["--ros-args", "--params-file", str(sim_file),
@@ -143,11 +148,30 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
         if controller is not None:
             cmds["autopilot"] = child.command("lander_autopilot.node", ["--ros-args", *ap_args])
     if plan.estimate:
-        # the estimator's initial error is drawn with the sim's seed (-1: the scene's sensors.seed)
-        est_params: dict[str, Any] = {"scene": plan.scene, "seed": int(sim_params.get("seed", -1))}
-        if flight_id:
-            est_params["flight_id"] = flight_id
+        est_params = _estimator_params(plan, sim_params, flight_id)
         cmds["estimator"] = child.command("lander_autopilot.estimator_node",
                                           ["--ros-args", "--params-file",
                                            str(_params_yaml(ESTIMATOR_NODE, est_params, folder))])
     return cmds
+
+
+def _estimator_params(plan: FlightPlan, sim_params: dict[str, Any], flight_id: str) -> dict[str, Any]:
+    """The estimator node's parameters: its scene, and its initial error drawn with the sim's seed
+    (-1: the scene's sensors.seed)."""
+    est_params: dict[str, Any] = {"scene": plan.scene, "seed": int(sim_params.get("seed", -1))}
+    if flight_id:
+        est_params["flight_id"] = flight_id
+    return est_params
+
+
+def _tell_navigation_error(ap_params: dict[str, Any], scene: str, est_params: dict[str, Any]) -> None:
+    """On the estimate, a law that plans from its first state is given the estimator's initial sigmas
+    (lander_tools.fly.navigation) in ``ap_params["controller_params"]``, on top of the parameters the
+    autopilot would fly otherwise: those given, else the scene's autopilot parameters (its default)."""
+    if "controller_params" in ap_params:
+        base = parse_controller_params(ap_params["controller_params"])
+    else:
+        base = dict(scene_autopilot(load_scene(scene)).parameters)
+    completed = estimate_params(str(ap_params["controller"]), base, est_params)
+    if completed is not None:
+        ap_params["controller_params"] = dump_controller_params(completed)

@@ -82,8 +82,8 @@ def test_lockstep_flight_started_with_the_recorder_is_recorded_whole_with_every_
 
 
 def test_a_flight_on_the_estimate_restarts_with_its_estimator_and_is_recorded_whole(tmp_path: Path) -> None:
-    """Sim (lockstep), estimator and autopilot flying on its estimate, started by hand and running
-    before the recorder exists: the reset restarts the estimator's filter at the new state 1 with
+    """Sim (lockstep) and autopilot flying on the estimate, started by hand and running before the
+    estimator and the recorder exist: the reset starts the estimator's filter at the new state 1 with
     its seed's initial error, so the bag holds one estimate per state from t = 0 on each estimate
     topic (counted against FLIGHT_ENDED's states) and every recorded estimate is the one a filter
     started afresh at that state gives, bit for bit (the re-run of lander analyse reproduces it)."""
@@ -93,26 +93,32 @@ def test_a_flight_on_the_estimate_restarts_with_its_estimator_and_is_recorded_wh
 
     scene, bag = "hover-canted-sensors", tmp_path / "estimate"
     with _node("lander_sim.node", scene=scene, speed=0.0, lockstep=True) as sim, \
-            _node("lander_autopilot.estimator_node", scene=scene) as est, \
             _node("lander_autopilot.node", scene=scene, use_sim_time=True, state_source="estimate") as ap, \
             FlightLink("test_whole_estimate") as link:
-        estimates: list[int] = []
-        link.subscribe("/lander/estimate/state", "lander_interfaces/msg/LanderState",
-                       lambda m: estimates.append(m.sequence))
-        # the old flight is flown on the estimate before the recorder joins: a restart, not a start
-        rosutil.wait_for(lambda: len(estimates) > 10, 60.0, what="estimates of the running flight")
-        r = _record("-o", str(bag), "--whole-flight", "--duration", "3", "--wait", "30")
-        assert r.returncode == 0, r.stdout + r.stderr + sim.output() + est.output() + ap.output()
+        states: list[int] = []
+        link.subscribe("/lander/state", "lander_interfaces/msg/LanderState", lambda m: states.append(m.sequence))
+        # The old flight runs before the estimator exists (the lockstep sim advances on its 1 s
+        # timeout, the autopilot having no estimate to fly on): the estimator starts in the middle
+        # of a flight, and the recorder's reset is what it must start afresh from.
+        rosutil.wait_for(lambda: len(states) > 2, 60.0, what="states of the running flight")
+        with _node("lander_autopilot.estimator_node", scene=scene) as est:
+            def estimator_reads_the_state() -> bool:
+                return any(i.node_name == "lander_estimator"
+                           for i in link.node.get_subscriptions_info_by_topic("/lander/state"))
+
+            rosutil.wait_for(estimator_reads_the_state, 60.0, what="the estimator's reader of /lander/state")
+            r = _record("-o", str(bag), "--whole-flight", "--duration", "3", "--wait", "30")
+            assert r.returncode == 0, r.stdout + r.stderr + sim.output() + est.output() + ap.output()
     assert "complete: the whole flight, t = 0 to 3.0 s (time-limit)" in r.stdout
     span = check_span(bag, end_t=3.0, lockstep=True, sim_only_events=False)
     got = read_bag(bag)
     n = len(span.state_seq)
     assert n == 31  # dt 0.1 s: t = 0, 0.1, ..., 3.0
-    states = got.messages("/lander/state")
+    recorded_states = got.messages("/lander/state")
     for topic in ("/lander/estimate/state", "/lander/estimate/odometry"):
         msgs = got.messages(topic)
         assert len(msgs) == n, f"{topic}: {len(msgs)} estimates for {n} states"
-        assert [m.header.stamp for m in msgs] == [m.header.stamp for m in states], topic
+        assert [m.header.stamp for m in msgs] == [m.header.stamp for m in recorded_states], topic
     assert [m.sequence for m in got.messages("/lander/estimate/state")] == list(range(1, n + 1))
     assert got.meta["seed"] == "-1"  # the estimator's: the scene's sensors.seed
     rerun = estimate_nis.from_bag(got)  # raises, naming the first state that differs

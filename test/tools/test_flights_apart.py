@@ -242,6 +242,15 @@ def test_a_stranger_publishing_throttles_is_refused_counted_and_reported(alone, 
     sent = 0
     try:
         obs.wait_for(lambda: bool(states), LAUNCH_TIMEOUT, "the flight's first state")
+
+        # Every reader of the flight's throttles (the sim's, the launcher's watch and recorder; all
+        # there once the flight runs) has matched this writer: a volatile writer's messages reach
+        # only the readers matched when it sends, and the bag must hold what the sim refused.
+        def all_readers_matched() -> bool:
+            readers = obs.node.count_subscribers("/lander/throttle")
+            return readers >= 2 and pub.get_subscription_count() >= readers
+
+        obs.wait_for(all_readers_matched, LAUNCH_TIMEOUT, "every reader of /lander/throttle matched the stranger")
         # Full throttle on every thruster, from a node that is not the flight's, while the flight
         # flies: the flight must not feel it.
         while not any("throttle.stranger" in line for line in fly.log) and fly.proc.poll() is None:

@@ -27,7 +27,9 @@ node publishes in ``AutopilotStatus.mode`` and as a ``MODE_CHANGED`` event)::
                   ``deorbit``) or the MPC (:class:`.mpc.MpcDescent`, ``deorbit-mpc``)
     hover         once the fall is stopped within ``hover_band`` of the demand altitude at a climb
                   rate within ``hover_speed``, or anywhere under it: :class:`.hover.HoverCapture`
-    landing       on demand (demand altitude 0 while hovering): the landing law to touchdown
+    landing       on demand (demand altitude 0 while hovering), or once the hover has been held
+                  ``land_after_hover`` seconds (:meth:`DeorbitController.hover_held`): the landing
+                  law to touchdown, flown on demand altitude 0
 
 The parts: the phase machine (:class:`.phases.PhaseMachine`), the descent law, the hover
 capture, the online estimator (:class:`.estimation.OnlineEstimator`), the chute decision
@@ -137,6 +139,8 @@ class DeorbitController(Controller):
         self.hover.band, self.hover.speed = self.hover_band, self.hover_speed
         self.landing = LandingController(vehicle)
         self.slew_time = float(p["slew_time"])  # type: ignore[arg-type]
+        hold = p["land_after_hover"]
+        self.land_after_hover: float | None = None if hold is None else float(hold)  # type: ignore[arg-type]
         self.burn_throttle = float(p["burn_throttle"])  # type: ignore[arg-type]
         self.navigation_sigma = (float(p["navigation_velocity_sigma"]), float(p["navigation_position_sigma"]))  # type: ignore[arg-type]
         self.attitude = QuaternionAttitudeController(vehicle, poles=p["attitude_poles"], design_fuel=p["design_fuel"])  # type: ignore[arg-type]
@@ -172,6 +176,9 @@ class DeorbitController(Controller):
         self.plan: DeorbitPlan | None = None
         self._t0: float | None = None
         self._chute_open = False
+        self._held_since: float | None = None  # start [s] of the hover held in its band, None: not held
+        self._held = 0.0  # [s] how long the hover has been held, at the last period
+        self._landing_on_hold = False  # the landing began on the hover held, not on a demand
         self.descent.drag_k = 0.0
         self.chute.reset()
         self.descent.drag_scale = 1.0
@@ -208,7 +215,25 @@ class DeorbitController(Controller):
         self.machine.note(t, why)
 
     def diagnostics(self) -> dict[str, float]:
-        return self.powered.diagnostics()
+        figures = self.powered.diagnostics()
+        if self.land_after_hover is not None:
+            # the landing on the hover held flies demand altitude 0 whatever the demand in force says
+            figures = {**figures, "land_after_hover": self.land_after_hover, "hover_held": self._held,
+                       "landing_on_hold": float(self._landing_on_hold)}
+        return figures
+
+    def hover_held(self, t: float, state: StateView, demand: Demand) -> float:
+        """How long [s] at ``t`` the hover has been held: the time since the lander last met the
+        hover's capture criterion (:func:`.phases.settled`: within ``hover_band`` of the demand at a
+        climb rate within ``hover_speed``, or under the band and not falling faster) after failing
+        it, or since the hover began; 0 at a period that fails it."""
+        if settled(altitude(state) - demand.altitude, climb_rate(state), self.hover_band, self.hover_speed):
+            if self._held_since is None:
+                self._held_since = t
+            self._held = t - self._held_since
+        else:
+            self._held_since, self._held = None, 0.0
+        return self._held
 
     # --- the mission ----------------------------------------------------------------------------
 
@@ -279,10 +304,17 @@ class DeorbitController(Controller):
                                      requests=inner.requests)
         if self.phase is Phase.HOVER and demand.altitude == 0.0:
             self.machine.fire(t, Event.LAND, "land on demand")
+        elif (self.phase is Phase.HOVER and self.land_after_hover is not None
+              and self.hover_held(t, state, demand) >= self.land_after_hover):
+            self._landing_on_hold = True
+            self.machine.fire(t, Event.LAND, f"hover held {self._held:.1f} s (land_after_hover "
+                              f"{self.land_after_hover:g} s): land as on demand altitude 0")
         if self.phase is Phase.HOVER:
             inner = self.hover.update(t, state, demand)
         elif self.phase is Phase.LANDING:
-            inner = self.landing.update(t, state, demand)
+            # the landing law flies to the ground: demand altitude 0, whether demanded or on the hover held
+            inner = self.landing.update(t, state, dataclasses.replace(demand, altitude=0.0)
+                                        if self._landing_on_hold else demand)
         else:
             assert out is not None  # the orbit's phases
             return ControlOutput(out.throttles, out.saturated, out.unclipped, mode=self.phase.value)

@@ -58,6 +58,9 @@ MISSION_ROWS: tuple[Param, ...] = (
           "the hover's attitude poles: the tilt the wind needs at rest flown before the drift grows", poles(6)),
     Param("design_fuel", None, "kg", "none or > 0", "fuel the attitude law is designed at (none: a full tank)",
           design_fuel),
+    Param("land_after_hover", None, "s", "none or > 0",
+          "land (the `landing` phase, as on demand altitude 0) once the hover is held this long in its band (none: never)",
+          optional(positive)),
 )
 
 #: Rows of the scheduled powered descent (``deorbit``).

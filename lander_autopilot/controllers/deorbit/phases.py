@@ -51,7 +51,7 @@ class Event(str, enum.Enum):
     CHUTE_OPENED = "chute opened"  # the descent law asked for the chute (its drag and airspeed limits)
     BRAKING = "braking curve reached"  # the descent law leaves its coast mode
     SETTLED = "fall stopped in the band"  # settled, with a demand above the ground
-    LAND = "land demanded"  # demand altitude 0 while hovering
+    LAND = "land demanded"  # demand altitude 0 while hovering, or the hover held ``land_after_hover``
 
 
 #: ``(phase, event) -> next phase``; any pair not listed is refused.

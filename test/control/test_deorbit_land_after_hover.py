@@ -46,7 +46,7 @@ def test_lands_once_the_hover_is_held_the_time_asked_not_before(law):
     i_hover, i_land = _first(log, Phase.HOVER), _first(log, Phase.LANDING)
     t_hover, t_land = log[i_hover][0], log[i_land][0]
     # every period from the hover's start to the landing met the capture criterion (the hover held)
-    for t, phase, s, _ in log[i_hover:i_land + 1]:
+    for t, _, s, _ in log[i_hover:i_land + 1]:
         h = float(np.linalg.norm(s.r_W)) - c.MARS_RADIUS
         climb = float(s.v_W @ s.r_W) / float(np.linalg.norm(s.r_W))
         assert settled(h - DEMAND.altitude, climb, ctrl.hover_band, ctrl.hover_speed), (t, h, climb)

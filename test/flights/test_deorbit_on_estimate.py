@@ -98,7 +98,7 @@ def test_the_de_orbit_to_landing_on_the_estimate_holds_the_hover_and_lands_told_
     assert len(hover) == 1
     t0 = _t(hover[0].header.stamp)
     held = t[(t >= t0) & ok]
-    # held on the truth from the capture to the landing demand, at least 30 s, without a break
+    # held on the truth from the capture to the law's own landing (land_after_hover: 30 s), without a break
     assert len(held) >= 300 and np.allclose(np.diff(held), 0.1), (t0, held[:3], held[-3:])
     rerun = estimate_nis.from_bag(got)
     assert rerun.states == n and rerun.sensors

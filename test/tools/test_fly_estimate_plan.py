@@ -94,7 +94,9 @@ def test_a_scripted_flight_flies_on_the_estimate_with_estimate_true(tmp_path: Pa
     repo = Path(__file__).resolve().parents[2]
     plan = load_script(repo / "flights" / "deorbit-sensors-to-landing.yaml").plan()
     assert plan.estimate and plan.scene == "deorbit-sensors"
-    assert _controller_params(node_commands(plan, check_plan(plan), tmp_path)) == _estimator_sigmas()
+    # the flight's own parameter stands beside the sigmas the launcher adds
+    assert _controller_params(node_commands(plan, check_plan(plan), tmp_path)) == {"land_after_hover": 30.0,
+                                                                                   **_estimator_sigmas()}
     assert not parse_script({"scene": "hover", "end": {"time": 1.0}}).plan().estimate
     with pytest.raises(ScriptError, match="estimate: expected true or false, got 'yes'"):
         parse_script({"scene": "hover", "end": {"time": 1.0}, "estimate": "yes"})

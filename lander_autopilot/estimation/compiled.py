@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from lander_sim.fast.lander_kernel import HAVE_NUMBA, njit  # type: ignore[attr-defined]
+from lander_sim.fast.quaternion import qmul, rotation_into
 from lander_sim.physics.rotation import quat_exp_step, quat_mult, quat_normalise, quat_to_matrix
 
 from .ekf import DBA, DBG, DR, DTH, DV, N_ERR, NavFilter, NavState, Update, small_rotation
@@ -163,30 +164,6 @@ N_X = 16
 
 
 @njit(cache=True)
-def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
-    """``a x b``, as :func:`lander_sim.physics.rotation.quat_mult`."""
-    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-            a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
-            a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
-            a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
-
-
-@njit(cache=True)
-def _rot(x, R):  # pragma: no cover - compiled
-    """World-to-body ``R(q)`` of the state's quaternion (eq 13) into ``R``."""
-    s, a, b, c = x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3]
-    R[0, 0] = s * s + a * a - b * b - c * c
-    R[0, 1] = 2.0 * (a * b + s * c)
-    R[0, 2] = 2.0 * (a * c - s * b)
-    R[1, 0] = 2.0 * (a * b - s * c)
-    R[1, 1] = s * s - a * a + b * b - c * c
-    R[1, 2] = 2.0 * (s * a + b * c)
-    R[2, 0] = 2.0 * (s * b + a * c)
-    R[2, 1] = 2.0 * (b * c - s * a)
-    R[2, 2] = s * s - a * a - b * b + c * c
-
-
-@njit(cache=True)
 def _set_q_normalised(x, q0, q1, q2, q3):  # pragma: no cover - compiled
     n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3] = q0 / n, q1 / n, q2 / n, q3 / n
@@ -207,7 +184,7 @@ def nav_propagate(x, P, omega_m, f_m, dt, gm, qc):  # pragma: no cover - compile
         w[j] = omega_m[j] - x[X_BG + j]
         f[j] = f_m[j] - x[X_BA + j]
     R = np.empty((3, 3))
-    _rot(x, R)
+    rotation_into(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], R)
     C = np.ascontiguousarray(R.T)
     r2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
     c3 = r2 * math.sqrt(r2)
@@ -229,7 +206,7 @@ def nav_propagate(x, P, omega_m, f_m, dt, gm, qc):  # pragma: no cover - compile
         k = 0.5 * dt * (1.0 - h * h / 6.0)
     else:
         k = math.sin(h) / wn
-    q0, q1, q2, q3 = _qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], math.cos(h), k * w[0], k * w[1], k * w[2])
+    q0, q1, q2, q3 = qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], math.cos(h), k * w[0], k * w[1], k * w[2])
     _set_q_normalised(x, q0, q1, q2, q3)
     P[:, :] = covariance_propagate(P, C, f, w, gg, dt, qc)
     return True
@@ -255,7 +232,7 @@ def _apply(x, P, H, y, sigma):  # pragma: no cover - compiled
     else:
         k = math.sin(0.5 * a) / a
         e0, e1, e2, e3 = math.cos(0.5 * a), k * th0, k * th1, k * th2
-    q0, q1, q2, q3 = _qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], e0, e1, e2, e3)
+    q0, q1, q2, q3 = qmul(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], e0, e1, e2, e3)
     _set_q_normalised(x, q0, q1, q2, q3)
     for j in range(3):
         x[X_BG + j] = x[X_BG + j] + dx[9 + j]
@@ -269,7 +246,7 @@ def nav_update_star_tracker(x, P, q_m, sigma):  # pragma: no cover - compiled
     nq = math.sqrt(q_m[0] * q_m[0] + q_m[1] * q_m[1] + q_m[2] * q_m[2] + q_m[3] * q_m[3])
     if not math.isfinite(nq) or abs(nq - 1.0) > 1e-6:
         return False
-    d0, d1, d2, d3 = _qmul(x[X_Q], -x[X_Q + 1], -x[X_Q + 2], -x[X_Q + 3], q_m[0], q_m[1], q_m[2], q_m[3])
+    d0, d1, d2, d3 = qmul(x[X_Q], -x[X_Q + 1], -x[X_Q + 2], -x[X_Q + 3], q_m[0], q_m[1], q_m[2], q_m[3])
     if d0 < 0.0:
         d0, d1, d2, d3 = -d0, -d1, -d2, -d3
     n = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
@@ -285,7 +262,7 @@ def nav_update_star_tracker(x, P, q_m, sigma):  # pragma: no cover - compiled
 def nav_update_altimeter(x, P, rho_m, sigma, beam_B, planet_radius):  # pragma: no cover - compiled
     """:meth:`~.ekf.NavFilter.update_altimeter` (slant range along ``beam_B`` to the sphere of ``planet_radius``)."""
     R = np.empty((3, 3))
-    _rot(x, R)
+    rotation_into(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], R)
     nb = math.sqrt(beam_B[0] * beam_B[0] + beam_B[1] * beam_B[1] + beam_B[2] * beam_B[2])
     dB = np.array([beam_B[0] / nb, beam_B[1] / nb, beam_B[2] / nb])
     d = np.empty(3)
@@ -320,7 +297,7 @@ def nav_update_altimeter(x, P, rho_m, sigma, beam_B, planet_radius):  # pragma: 
 def nav_update_doppler(x, P, v_m, sigma):  # pragma: no cover - compiled
     """:meth:`~.ekf.NavFilter.update_doppler`: ``z = R v``, ``H_v = R``, ``H_th = [(R v) x]``."""
     R = np.empty((3, 3))
-    _rot(x, R)
+    rotation_into(x[X_Q], x[X_Q + 1], x[X_Q + 2], x[X_Q + 3], R)
     vb = np.empty(3)
     for i in range(3):
         vb[i] = R[i, 0] * x[X_V] + R[i, 1] * x[X_V + 1] + R[i, 2] * x[X_V + 2]

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]
+from lander_sim.fast.quaternion import qmul, rotation_into
 
 from .suite import SENSORS, SensorSuite
 
@@ -102,35 +103,11 @@ def pack_suite(suite: SensorSuite, n_steps: int, dt: float, planet_radius: float
 
 
 @njit(cache=True)
-def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
-    """``a x b`` (eq 10 of the dynamics reference), as :func:`lander_sim.physics.rotation.quat_mult`."""
-    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-            a0 * b1 + b0 * a1 + a2 * b3 - a3 * b2,
-            a0 * b2 + b0 * a2 + a3 * b1 - a1 * b3,
-            a0 * b3 + b0 * a3 + a1 * b2 - a2 * b1)
-
-
-@njit(cache=True)
-def _rot(q, R):  # pragma: no cover - compiled
-    """World-to-body matrix ``R(q)`` (eq 13) into ``R``."""
-    s, a, b, c = q[0], q[1], q[2], q[3]
-    R[0, 0] = s * s + a * a - b * b - c * c
-    R[0, 1] = 2.0 * (a * b + s * c)
-    R[0, 2] = 2.0 * (a * c - s * b)
-    R[1, 0] = 2.0 * (a * b - s * c)
-    R[1, 1] = s * s - a * a + b * b - c * c
-    R[1, 2] = 2.0 * (s * a + b * c)
-    R[2, 0] = 2.0 * (s * b + a * c)
-    R[2, 1] = 2.0 * (b * c - s * a)
-    R[2, 2] = s * s - a * a - b * b + c * c
-
-
-@njit(cache=True)
 def truth_after_step(y0, y1, dt, gm, omega, f):  # pragma: no cover - compiled
     """Body rate ``omega`` and specific force ``f`` (body frame) over the step of ``dt`` [s] from
     flat state ``y0`` to ``y1`` (quaternion attitude; module docstring), into ``omega``, ``f``."""
     # rotation_vector(q0, q1): d = q0^* x q1, the shorter way round
-    d0, d1, d2, d3 = _qmul(y0[6], -y0[7], -y0[8], -y0[9], y1[6], y1[7], y1[8], y1[9])
+    d0, d1, d2, d3 = qmul(y0[6], -y0[7], -y0[8], -y0[9], y1[6], y1[7], y1[8], y1[9])
     if d0 < 0.0:
         d0, d1, d2, d3 = -d0, -d1, -d2, -d3
     n = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
@@ -145,7 +122,7 @@ def truth_after_step(y0, y1, dt, gm, omega, f):  # pragma: no cover - compiled
         g = 0.5 * (-gm * y0[j] / c0 + -gm * y1[j] / c1)
         fw[j] = (y1[3 + j] - y0[3 + j]) / dt - g
     R = np.empty((3, 3))
-    _rot(y0[6:10], R)
+    rotation_into(y0[6], y0[7], y0[8], y0[9], R)
     for i in range(3):
         f[i] = R[i, 0] * fw[0] + R[i, 1] * fw[1] + R[i, 2] * fw[2]
 
@@ -169,7 +146,7 @@ def sample_step(t, y, omega, f, sp, bias, w, off, cur, nxt, last, z, sig, got): 
     Per sensor ``k``: ``got[k]`` 0 not due, 1 a measurement ``z[k]`` with noise ``sig[k]``, 2 a
     dropout. Returns False when a sensor ran out of normals (the flight is longer than packed)."""
     R = np.empty((3, 3))
-    _rot(y[6:10], R)
+    rotation_into(y[6], y[7], y[8], y[9], R)
     radius = sp[SP_RADIUS]
     for k in range(N_SENSORS):
         got[k] = 0
@@ -225,7 +202,7 @@ def sample_step(t, y, omega, f, sp, bias, w, off, cur, nxt, last, z, sig, got): 
             else:
                 kk = math.sin(0.5 * a) / a
                 e0, e1, e2, e3 = math.cos(0.5 * a), kk * n0, kk * n1, kk * n2
-            q0, q1, q2, q3 = _qmul(y[6], y[7], y[8], y[9], e0, e1, e2, e3)
+            q0, q1, q2, q3 = qmul(y[6], y[7], y[8], y[9], e0, e1, e2, e3)
             if q0 < 0.0:
                 q0, q1, q2, q3 = -q0, -q1, -q2, -q3
             z[k, 0], z[k, 1], z[k, 2], z[k, 3] = q0, q1, q2, q3

@@ -29,11 +29,16 @@ import math
 
 import numpy as np
 
+import lander_sim.fast.quaternion as _quaternion
+from lander_sim.fast.cache_guard import invalidate_if_changed
 from lander_sim.fast.lander_kernel import HAVE_NUMBA, njit  # type: ignore[attr-defined]
 from lander_sim.fast.quaternion import qmul, rotation_into
 from lander_sim.physics.rotation import quat_exp_step, quat_mult, quat_normalise, quat_to_matrix
 
 from .ekf import DBA, DBG, DR, DTH, DV, N_ERR, NavFilter, NavState, Update, small_rotation
+
+# The kernels call the quaternion kernels of that module: recompile when it changes.
+invalidate_if_changed(__file__, _quaternion.__file__)
 
 __all__ = ["HAVE_NUMBA", "N_ERR", "N_X", "CompiledNavFilter", "compiled_copy", "covariance_propagate", "nav_propagate",
            "nav_update_altimeter", "nav_update_doppler", "nav_update_ground_fix", "nav_update_star_tracker",

@@ -28,10 +28,15 @@ from typing import Any
 
 import numpy as np
 
+import lander_sim.fast.quaternion as _quaternion
+from lander_sim.fast.cache_guard import invalidate_if_changed
 from lander_sim.fast.lander_kernel import njit  # type: ignore[attr-defined]
 from lander_sim.fast.quaternion import qmul, rotation_into
 
 from .suite import SENSORS, SensorSuite
+
+# The kernels call the quaternion kernels of that module: recompile when it changes.
+invalidate_if_changed(__file__, _quaternion.__file__)
 
 __all__ = ["IMU", "N_SENSORS", "N_SP", "pack_suite", "sample_step", "samples_due", "truth_after_step"]
 

@@ -33,6 +33,7 @@ import numpy as np
 import lander_autopilot.controllers.compiled as _law
 import lander_autopilot.estimation.compiled as _filter
 import lander_sim.fast.lander_kernel as _kernel
+import lander_sim.fast.quaternion as _quaternion
 import lander_sim.sensors.compiled as _sensors
 from lander_autopilot.controllers.compiled import D_ALT, law_update
 from lander_autopilot.estimation.compiled import (
@@ -54,9 +55,10 @@ from lander_sim.sensors.compiled import IMU as S_IMU
 from lander_sim.sensors.compiled import N_SENSORS, N_SP, SP_ALT_BEAM, SP_GM, SP_RADIUS, sample_step, truth_after_step
 from lander_sim.sensors.compiled import STAR as S_STAR
 
-# The compiled loop calls the law, the Verlet step, the sensors and the filter of those modules:
-# recompile when they change.
-invalidate_if_changed(__file__, _law.__file__, _kernel.__file__, _filter.__file__, _sensors.__file__)
+# The compiled loop calls the law, the Verlet step, the sensors and the filter of those modules
+# (and, through the last two, the quaternion kernels): recompile when they change.
+invalidate_if_changed(__file__, _law.__file__, _kernel.__file__, _filter.__file__, _sensors.__file__,
+                      _quaternion.__file__)
 
 try:
     from numba import njit, prange

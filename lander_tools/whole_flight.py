@@ -48,6 +48,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from lander_tools.fly.plan import ESTIMATE_TOPICS
+
 #: Exit statuses (``lander fly`` uses 3 for an incomplete bag too).
 EXIT_OK, EXIT_FLIGHT, EXIT_USAGE, EXIT_INCOMPLETE_BAG = 0, 1, 2, 3
 #: Wall seconds for the recorder and the simulator to match each other once the simulator is found.
@@ -59,9 +61,6 @@ QUIET_LIMIT = 5.0
 #: Wall seconds to wait, after FLIGHT_ENDED, for the recorder to hold what the simulator counted.
 DELIVERY_TIMEOUT = 10.0
 LAUNCHER_NODE = "/lander_fly"
-#: The estimator node (lander_autopilot.estimator_node) and its outputs (lander_tools.fly.plan).
-ESTIMATOR_NODE = "/lander_estimator"
-ESTIMATE_TOPICS = ("/lander/estimate/odometry", "/lander/estimate/state")
 
 
 class _Refused(Exception):
@@ -135,7 +134,7 @@ def _record(args: argparse.Namespace, config: Any, stop: threading.Event,
         shortfalls,
         surplus,
     )
-    from lander_tools.live.link import AUTOPILOT_NODE, SIM_NODE, FlightLink, NoFlight
+    from lander_tools.live.link import AUTOPILOT_NODE, ESTIMATOR_NODE, SIM_NODE, FlightLink, NoFlight
     from lander_tools.recorder import Recorder
 
     with FlightLink("lander_record_whole") as link:
@@ -303,7 +302,7 @@ def _wait_matched(link: Any, rec: Any, need: dict[str, int], sim_topics: list[st
     from std_srvs.srv import Trigger
 
     from lander_ros.flight_span import parse_matched
-    from lander_tools.live.link import AUTOPILOT_NODE
+    from lander_tools.live.link import AUTOPILOT_NODE, ESTIMATOR_NODE
 
     deadline = time.monotonic() + MATCH_TIMEOUT
     waiting: list[str] = []

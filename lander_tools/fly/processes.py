@@ -125,6 +125,7 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
     sim_file = _params_yaml(SIM_NODE, sim_params, folder)
     cmds: dict[str, list[str]] = {}
     ap_args: list[str] = []
+    est_params = _estimator_params(plan, sim_params, flight_id) if plan.estimate else {}
     if controller is not None:
         ap_params: dict[str, Any] = dict(user[AUTOPILOT_NODE])
         ap_params.update({"scene": plan.scene, "controller": controller, "use_sim_time": True})
@@ -138,7 +139,7 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
             ap_params["state_source"] = "estimate"
         ap_params.update(plan.autopilot_params)
         if plan.estimate:
-            _tell_navigation_error(ap_params, plan.scene, _estimator_params(plan, sim_params, flight_id))
+            _tell_navigation_error(ap_params, plan.scene, est_params)
         ap_args = ["--params-file", str(_params_yaml(AUTOPILOT_NODE, ap_params, folder))]
     if plan.compose and controller is not None:
         cmds["composed"] = child.command("lander_tools.fly.composed", ["--ros-args", "--params-file", str(sim_file),
@@ -148,7 +149,6 @@ def node_commands(plan: FlightPlan, controller: str | None, folder: Path, flight
         if controller is not None:
             cmds["autopilot"] = child.command("lander_autopilot.node", ["--ros-args", *ap_args])
     if plan.estimate:
-        est_params = _estimator_params(plan, sim_params, flight_id)
         cmds["estimator"] = child.command("lander_autopilot.estimator_node",
                                           ["--ros-args", "--params-file",
                                            str(_params_yaml(ESTIMATOR_NODE, est_params, folder))])

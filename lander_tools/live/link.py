@@ -36,6 +36,7 @@ ASK_AGAIN = 1.0
 REJECT_WINDOW = 0.5
 SIM_NODE = "/lander_sim"
 AUTOPILOT_NODE = "/autopilot"
+ESTIMATOR_NODE = "/lander_estimator"  #: lander_autopilot.estimator_node
 
 
 class NoFlight(ValueError):

@@ -260,19 +260,36 @@ class FlightLink:
 
     def set_parameters(self, node: str, values: dict[str, Any], atomically: bool = False) -> Outcome:
         """Set parameters of ``node`` (e.g. ``/autopilot``) through its parameter services; typed by
-        the Python value (float -> double, str -> string, ...). Refused: the node's reason."""
+        the Python value (float -> double, str -> string, ...). Refused: the node's reason. Should
+        the reply be lost (:meth:`call`), the values read back tell whether they were set, when
+        they differed from the request's before it."""
         from rcl_interfaces.msg import Parameter
         from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 
         from lander_tools.live.params import parameter_value
 
+        names = list(values)
+        before = self.get_parameters(node, names)
+
+        def made() -> Outcome | None:
+            if self.get_parameters(node, names) != values:
+                return None
+            return Outcome(True, f"ok (the reply of {node} was lost on the way; its parameters read back "
+                                 "are those asked)")
+
+        confirm = made if before != values else None
         params = [Parameter(name=k, value=parameter_value(v)) for k, v in values.items()]
         if atomically:
             resp = self.call(SetParametersAtomically, f"{node}/set_parameters_atomically",
-                             SetParametersAtomically.Request(parameters=params))
+                             SetParametersAtomically.Request(parameters=params), confirm=confirm)
+            if isinstance(resp, Outcome):
+                return resp
             results = [resp.result]
         else:
-            resp = self.call(SetParameters, f"{node}/set_parameters", SetParameters.Request(parameters=params))
+            resp = self.call(SetParameters, f"{node}/set_parameters", SetParameters.Request(parameters=params),
+                             confirm=confirm)
+            if isinstance(resp, Outcome):
+                return resp
             results = list(resp.results)
         bad = [r.reason or "refused" for r in results if not r.successful]
         return Outcome(not bad, "; ".join(bad) if bad else "ok")
